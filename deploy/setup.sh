@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Installs the missing Debian packages (apt only when something is missing), then configures and
+# builds Release into build/. Idempotent; fast when nothing changed.
+#   deploy/setup.sh [--build-dir DIR] [--sanitize] [--no-build]
+set -euo pipefail
+here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+build_dir="$here/build"
+sanitize=OFF
+do_build=1
+while [ $# -gt 0 ]; do
+  case "$1" in
+    --build-dir) build_dir=$2; shift 2 ;;
+    --sanitize) sanitize=ON; shift ;;
+    --no-build) do_build=0; shift ;;
+    -h|--help) sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    *) echo "setup.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
+  esac
+done
+
+packages=(cmake ninja-build g++ pkg-config ccache libgtest-dev libbenchmark-dev
+  libopenni2-dev libopencv-dev libeigen3-dev liblcm-dev liblcm-bin libglib2.0-dev
+  libdraco-dev draco pocl-opencl-icd ocl-icd-opencl-dev opencl-headers
+  opencl-clhpp-headers clinfo iproute2 procps)
+missing=()
+for p in "${packages[@]}"; do
+  dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${#missing[@]} missing package(s): ${missing[*]}"
+  sudo_cmd=()
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { echo "setup: need root (or sudo) to install: ${missing[*]}" >&2; exit 1; }
+    sudo_cmd=(sudo)
+  fi
+  "${sudo_cmd[@]}" apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+else
+  echo "setup: all ${#packages[@]} packages present"
+fi
+
+# PoCL needs a writable kernel cache or it reports zero devices.
+export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$build_dir/pocl-cache}
+mkdir -p "$POCL_CACHE_DIR"
+
+[ "$do_build" -eq 1 ] || exit 0
+if [ ! -f "$build_dir/CMakeCache.txt" ]; then
+  cmake -S "$here" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DVD_SANITIZE=$sanitize
+fi
+jobs=$(nproc 2>/dev/null || echo 2)
+cmake --build "$build_dir" -j "$jobs"
