@@ -1,0 +1,60 @@
+#pragma once
+// Conversion between in-memory types and the vdeform LCM messages, channel names, LCM URL.
+#include <cstdint>
+#include <string>
+
+#include <vdeform/control_t.hpp>
+#include <vdeform/mesh_t.hpp>
+#include <vdeform/rgbd_frame_t.hpp>
+#include <vdeform/server_status_t.hpp>
+
+#include "vd/common/codecs.h"
+#include "vd/common/frame.h"
+#include "vd/common/mesh.h"
+#include "vd/common/status.h"
+
+namespace vd {
+
+// Channel names, defined once.
+inline constexpr const char* kFrameChannel = "VDEFORM_FRAMES";
+inline constexpr const char* kMeshChannel = "VDEFORM_MESH";
+inline constexpr const char* kStatusChannel = "VDEFORM_STATUS";
+inline constexpr const char* kControlChannel = "VDEFORM_CONTROL";
+
+// Largest payload accepted in one message; LCM delivery breaks above ~8 MB (STACK.md).
+inline constexpr int64_t kMaxPayloadBytes = 6 * 1024 * 1024;
+
+// Multicast on the host only (ttl=0) with a 4 MB receive buffer: STACK.md measured 71 of 300
+// frames arriving with the kernel default buffer and all 300 with this one.
+inline constexpr const char* kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
+// The flag if given, else $LCM_DEFAULT_URL, else kDefaultLcmUrl.
+std::string ResolveLcmUrl(const std::string& flag_value);
+
+struct FrameEncodeOptions {
+  DepthEncoding depth = DepthEncoding::kRvl;
+  ColorEncoding color = ColorEncoding::kJpeg;
+  // JPEG quality 1..100.
+  int jpeg_quality = 90;
+  Status Validate() const;
+};
+
+StatusOr<vdeform::rgbd_frame_t> FrameToMessage(const RgbdFrame& frame, const FrameEncodeOptions& options);
+// Validates every field (sizes, encodings, intrinsics, payload lengths) before decoding.
+StatusOr<RgbdFrame> MessageToFrame(const vdeform::rgbd_frame_t& msg);
+
+StatusOr<vdeform::mesh_t> MeshToMessage(const TriangleMesh& mesh, int64_t utime, int64_t seq, int8_t kind,
+                                        int8_t encoding = vdeform::mesh_t::ENCODING_DRACO,
+                                        const DracoOptions& draco = {});
+StatusOr<TriangleMesh> MessageToMesh(const vdeform::mesh_t& msg);
+
+// Decodes raw LCM bytes into a message, turning LCM's -1 into a Status (truncated/garbage input).
+template <typename Msg>
+StatusOr<Msg> DecodeLcm(const void* data, size_t size) {
+  Msg msg;
+  if (size > static_cast<size_t>(INT32_MAX)) return InvalidArgument("LCM message too large");
+  const int used = msg.decode(data, 0, static_cast<int>(size));
+  if (used < 0) return DataLoss(std::string("cannot decode ") + Msg::getTypeName() + " (" + std::to_string(size) + " bytes)");
+  return msg;
+}
+
+}  // namespace vd
