@@ -1,0 +1,126 @@
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "vd/common/codecs.h"
+
+namespace vd {
+namespace {
+
+// Smooth gradients and waves: what JPEG is meant for (sharp chroma edges suffer from 4:2:0).
+cv::Mat TestColor(int width, int height) {
+  cv::Mat color(height, width, CV_8UC3);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      color.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<uint8_t>(x * 255 / width), static_cast<uint8_t>(y * 255 / height),
+                                            static_cast<uint8_t>(128 + 100 * std::sin(x * 0.1) * std::cos(y * 0.07)));
+  return color;
+}
+
+double MeanAbsDiff(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat diff;
+  cv::absdiff(a, b, diff);
+  const cv::Scalar s = cv::mean(diff);
+  return (s[0] + s[1] + s[2]) / 3.0;
+}
+
+TEST(ColorCodecTest, RawIsExact) {
+  const cv::Mat color = TestColor(64, 48);
+  auto bytes = EncodeColor(color, ColorEncoding::kRawBgr8);
+  ASSERT_TRUE(bytes.ok());
+  EXPECT_EQ(bytes->size(), 64u * 48u * 3u);
+  auto decoded = DecodeColor(bytes->data(), bytes->size(), ColorEncoding::kRawBgr8, 64, 48);
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  EXPECT_EQ(MeanAbsDiff(color, *decoded), 0.0);
+  // A non-continuous view encodes the same bytes as its copy.
+  const cv::Mat big = TestColor(100, 80);
+  const cv::Mat roi = big(cv::Rect(3, 4, 64, 48));
+  auto roi_bytes = EncodeColor(roi, ColorEncoding::kRawBgr8);
+  auto copy_bytes = EncodeColor(roi.clone(), ColorEncoding::kRawBgr8);
+  ASSERT_TRUE(roi_bytes.ok() && copy_bytes.ok());
+  EXPECT_EQ(*roi_bytes, *copy_bytes);
+}
+
+TEST(ColorCodecTest, JpegIsCloseAndQualityOrdersSize) {
+  const cv::Mat color = TestColor(160, 120);
+  size_t previous = 0;
+  double previous_error = 1e9;
+  for (int quality : {50, 75, 90, 95}) {
+    auto bytes = EncodeColor(color, ColorEncoding::kJpeg, quality);
+    ASSERT_TRUE(bytes.ok());
+    EXPECT_GT(bytes->size(), previous) << "quality " << quality;
+    previous = bytes->size();
+    auto decoded = DecodeColor(bytes->data(), bytes->size(), ColorEncoding::kJpeg, 160, 120);
+    ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+    EXPECT_EQ(decoded->type(), CV_8UC3);
+    const double error = MeanAbsDiff(color, *decoded);
+    EXPECT_LT(error, quality >= 90 ? 1.0 : 3.0) << "quality " << quality;
+    EXPECT_LT(error, previous_error) << "quality " << quality;
+    previous_error = error;
+  }
+}
+
+TEST(ColorCodecTest, NoneCarriesNoBytes) {
+  auto bytes = EncodeColor(TestColor(8, 8), ColorEncoding::kNone);
+  ASSERT_TRUE(bytes.ok());
+  EXPECT_TRUE(bytes->empty());
+  auto decoded = DecodeColor(nullptr, 0, ColorEncoding::kNone, 8, 8);
+  ASSERT_TRUE(decoded.ok());
+  EXPECT_TRUE(decoded->empty());
+  const uint8_t one = 1;
+  EXPECT_EQ(DecodeColor(&one, 1, ColorEncoding::kNone, 8, 8).status().code(), StatusCode::kDataLoss);
+}
+
+TEST(ColorCodecTest, WrongDeclaredSizeIsAnError) {
+  const cv::Mat color = TestColor(40, 30);
+  for (ColorEncoding e : {ColorEncoding::kRawBgr8, ColorEncoding::kJpeg}) {
+    auto bytes = EncodeColor(color, e);
+    ASSERT_TRUE(bytes.ok());
+    EXPECT_FALSE(DecodeColor(bytes->data(), bytes->size(), e, 40, 31).ok());
+    EXPECT_FALSE(DecodeColor(bytes->data(), bytes->size(), e, 41, 30).ok());
+    EXPECT_FALSE(DecodeColor(bytes->data(), bytes->size(), e, 0, 30).ok());
+    EXPECT_FALSE(DecodeColor(bytes->data(), bytes->size(), e, 40, 100000).ok());
+    EXPECT_FALSE(DecodeColor(bytes->data(), bytes->size(), ColorEncoding::kInvalid, 40, 30).ok());
+  }
+  // Transposed JPEG: the frame header check names both sizes.
+  auto jpeg = EncodeColor(color, ColorEncoding::kJpeg);
+  auto status = DecodeColor(jpeg->data(), jpeg->size(), ColorEncoding::kJpeg, 30, 40).status();
+  EXPECT_NE(status.message().find("40x30"), std::string::npos) << status.message();
+}
+
+TEST(ColorCodecTest, GreyJpegDecodesToThreeChannels) {
+  const cv::Mat grey(30, 40, CV_8UC1, cv::Scalar(128));
+  std::vector<uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", grey, jpeg));
+  auto decoded = DecodeColor(jpeg.data(), jpeg.size(), ColorEncoding::kJpeg, 40, 30);
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  EXPECT_EQ(decoded->type(), CV_8UC3);
+}
+
+TEST(ColorCodecTest, EncodeRejectsBadInput) {
+  EXPECT_EQ(EncodeColor(cv::Mat(), ColorEncoding::kJpeg).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(EncodeColor(cv::Mat(4, 4, CV_8UC1), ColorEncoding::kJpeg).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(EncodeColor(TestColor(8, 8), ColorEncoding::kJpeg, 0).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(EncodeColor(TestColor(8, 8), ColorEncoding::kJpeg, 101).status().code(), StatusCode::kInvalidArgument);
+  EXPECT_EQ(EncodeColor(TestColor(8, 8), ColorEncoding::kInvalid).status().code(), StatusCode::kInvalidArgument);
+}
+
+TEST(ColorCodecTest, RealFrameJpegRoundTrip) {
+  const std::string path = std::string(VD_SHARED_DATA_DIR) + "/7scenes_redkitchen/frame-000000.color.jpg";
+  const cv::Mat color = cv::imread(path, cv::IMREAD_COLOR);
+  if (color.empty()) GTEST_SKIP() << "no shared data at " << path;
+  auto bytes = EncodeColor(color, ColorEncoding::kJpeg, 90);
+  ASSERT_TRUE(bytes.ok());
+  // A 640x480 kitchen at q90 is a few tens of KB, far below the 921,600 raw bytes.
+  EXPECT_LT(bytes->size(), 200000u);
+  auto decoded = DecodeColor(bytes->data(), bytes->size(), ColorEncoding::kJpeg, color.cols, color.rows);
+  ASSERT_TRUE(decoded.ok());
+  EXPECT_LT(MeanAbsDiff(color, *decoded), 3.0);
+}
+
+}  // namespace
+}  // namespace vd
