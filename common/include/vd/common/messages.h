@@ -1,6 +1,7 @@
 #pragma once
 // Conversion between in-memory types and the vdeform LCM messages, channel names, LCM URL.
 #include <cstdint>
+#include <exception>
 #include <string>
 
 #include <vdeform/control_t.hpp>
@@ -47,12 +48,33 @@ StatusOr<vdeform::mesh_t> MeshToMessage(const TriangleMesh& mesh, int64_t utime,
                                         const DracoOptions& draco = {});
 StatusOr<TriangleMesh> MessageToMesh(const vdeform::mesh_t& msg);
 
+// lcm-gen's decode() resizes each array to its declared count before checking that the bytes are
+// there (a 40-byte message declaring 2^31 bytes allocates 2 GB), and throws std::length_error on a
+// negative count or a zero-length string. ValidateLcmWire walks Msg's wire layout without
+// allocating and refuses such input; DecodeLcm runs it first. Defined for the four vdeform types.
+template <typename Msg>
+Status ValidateLcmWire(const void* data, size_t size);
+template <>
+Status ValidateLcmWire<vdeform::rgbd_frame_t>(const void* data, size_t size);
+template <>
+Status ValidateLcmWire<vdeform::mesh_t>(const void* data, size_t size);
+template <>
+Status ValidateLcmWire<vdeform::server_status_t>(const void* data, size_t size);
+template <>
+Status ValidateLcmWire<vdeform::control_t>(const void* data, size_t size);
+
 // Decodes raw LCM bytes into a message, turning LCM's -1 into a Status (truncated/garbage input).
 template <typename Msg>
 StatusOr<Msg> DecodeLcm(const void* data, size_t size) {
-  Msg msg;
   if (size > static_cast<size_t>(INT32_MAX)) return InvalidArgument("LCM message too large");
-  const int used = msg.decode(data, 0, static_cast<int>(size));
+  VD_RETURN_IF_ERROR(ValidateLcmWire<Msg>(data, size));
+  Msg msg;
+  int used = -1;
+  try {
+    used = msg.decode(data, 0, static_cast<int>(size));
+  } catch (const std::exception& e) {
+    return DataLoss(std::string("cannot decode ") + Msg::getTypeName() + ": " + e.what());
+  }
   if (used < 0) return DataLoss(std::string("cannot decode ") + Msg::getTypeName() + " (" + std::to_string(size) + " bytes)");
   return msg;
 }
