@@ -297,6 +297,10 @@ class OpenNiSource : public FrameSource {
   Status ChooseMode(openni::VideoStream& stream, openni::SensorType type, bool depth) {
     const std::optional<openni::VideoMode> mode = PickMode(device_.getSensorInfo(type), depth);
     if (!mode) return Status::Ok();
+    const openni::VideoMode current = stream.getVideoMode();
+    if (current.getResolutionX() == mode->getResolutionX() && current.getResolutionY() == mode->getResolutionY() &&
+        current.getFps() == mode->getFps() && current.getPixelFormat() == mode->getPixelFormat())
+      return Status::Ok();
     if (stream.setVideoMode(*mode) != openni::STATUS_OK) {
       VD_LOG_WARNING << name_ << ": cannot set " << (depth ? "depth" : "colour") << " mode " << ModeString(*mode)
                      << " (" << ExtendedError() << "); keeping " << ModeString(stream.getVideoMode());
@@ -379,15 +383,21 @@ class OpenNiSource : public FrameSource {
 StatusOr<std::unique_ptr<FrameSource>> OpenOpenNiSource(const std::string& uri, const SourceOptions& options) {
   VD_RETURN_IF_ERROR(options.Validate());
   VD_RETURN_IF_ERROR(InitializeOpenNi());
-  if (uri.empty()) {
+  std::string device_uri = uri;
+  if (device_uri.empty()) {
+    // The first real sensor: once opened, the Dummy device shows up in the list too, and a plain
+    // "openni2" must not quietly stream fake frames.
     openni::Array<openni::DeviceInfo> devices;
     openni::OpenNI::enumerateDevices(&devices);
-    if (devices.getSize() == 0)
-      return NotFound("no OpenNI2 sensor found (devices found: none); connect one, or use openni2:Dummy, oni:FILE, "
-                      "folder:DIR or synthetic:SCENE");
+    for (int i = 0; i < devices.getSize() && device_uri.empty(); ++i)
+      if (std::string(devices[i].getUri()) != "Dummy") device_uri = devices[i].getUri();
+    if (device_uri.empty())
+      return NotFound("no OpenNI2 sensor found (devices found: " +
+                      std::string(devices.getSize() == 0 ? "none" : "only the Dummy device") +
+                      "); connect one, or use openni2:Dummy, oni:FILE, folder:DIR or synthetic:SCENE");
   }
   auto source = std::make_unique<OpenNiSource>();
-  VD_RETURN_IF_ERROR(source->Open(uri, false, options));
+  VD_RETURN_IF_ERROR(source->Open(device_uri, false, options));
   return std::unique_ptr<FrameSource>(std::move(source));
 }
 
