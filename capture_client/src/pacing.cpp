@@ -49,7 +49,15 @@ FramePacer::~FramePacer() {
   if (subscription_) lcm_->unsubscribe(subscription_);
 }
 
-void FramePacer::OnStatus(const lcm::ReceiveBuffer*, const std::string&, const vdeform::server_status_t* msg) {
+void FramePacer::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  // Decoded here rather than by LCM's typed handler so a malformed message is counted, not thrown.
+  StatusOr<vdeform::server_status_t> msg = DecodeLcm<vdeform::server_status_t>(buffer->data, buffer->data_size);
+  if (!msg.ok()) {
+    if (stats_.bad_status_messages++ == 0) {
+      VD_LOG_WARNING << "ignoring malformed " << kStatusChannel << " messages: " << msg.status().ToString();
+    }
+    return;
+  }
   if (msg->last_source_id != options_.source_id) return;
   if (msg->last_processed_seq > stats_.last_acked_seq) stats_.last_acked_seq = msg->last_processed_seq;
 }

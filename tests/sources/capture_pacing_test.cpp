@@ -256,3 +256,29 @@ TEST(FramePacer, ValidateNamesTheField) {
 
 }  // namespace
 }  // namespace vd
+
+namespace vd {
+namespace {
+
+TEST(FramePacer, MalformedStatusMessagesAreCountedNotFatal) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  auto pacer = FramePacer::Create(&lcm, Lockstep(0.1, 0));
+  ASSERT_TRUE(pacer.ok());
+  // Garbage, and a valid header declaring a huge array.
+  const std::vector<uint8_t> garbage = {1, 2, 3, 4, 5};
+  ASSERT_EQ(lcm.publish(kStatusChannel, garbage.data(), static_cast<unsigned>(garbage.size())), 0);
+  vdeform::server_status_t status{};
+  status.last_source_id = "test-source";
+  status.last_processed_seq = 0;
+  std::vector<uint8_t> bytes(static_cast<size_t>(status.getEncodedSize()));
+  ASSERT_GT(status.encode(bytes.data(), 0, static_cast<int>(bytes.size())), 0);
+  std::vector<uint8_t> truncated(bytes.begin(), bytes.begin() + bytes.size() / 2);
+  ASSERT_EQ(lcm.publish(kStatusChannel, truncated.data(), static_cast<unsigned>(truncated.size())), 0);
+  EXPECT_EQ((*pacer)->Send(Frame(0)).code(), StatusCode::kDeadlineExceeded);
+  EXPECT_EQ((*pacer)->stats().bad_status_messages, 2);
+  EXPECT_EQ((*pacer)->stats().last_acked_seq, -1);
+}
+
+}  // namespace
+}  // namespace vd

@@ -38,6 +38,8 @@ struct PacingStats {
   int64_t resends = 0;
   // Highest last_processed_seq acknowledged for our source id (-1: none yet).
   int64_t last_acked_seq = -1;
+  // Status messages that failed to decode (logged once, then only counted).
+  int64_t bad_status_messages = 0;
 };
 
 class FramePacer {
@@ -61,7 +63,7 @@ class FramePacer {
 
  private:
   FramePacer(lcm::LCM* lcm, const PacingOptions& options, const std::atomic<bool>* stop);
-  void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel, const vdeform::server_status_t* msg);
+  void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel);
   bool Stopped() const { return stop_ && stop_->load(); }
   // Sleeps until `until` (steady clock), waking early on stop.
   void SleepUntil(std::chrono::steady_clock::time_point until) const;
