@@ -1,0 +1,111 @@
+/* Marching cubes on the TSDF grid with welded vertices.
+ * Cell (x, y, z) has corners (x + i&1, y + (i>>1)&1, z + (i>>2)&1), i = 0..7; a corner is inside
+ * when its distance is < 0. The cell is valid when all 8 corners were observed (weight > 0).
+ * Edge e = axis * 4 + b0 + 2 * b1 starts at the corner with 0 along `axis` and (b0, b1) along the
+ * other two axes in x, y, z order. Each grid point owns the vertices on the three edges leaving it
+ * along +x, +y, +z; a vertex exists when its edge has a sign change and one of the up to four
+ * cells sharing the edge is valid, which is exactly when some triangle uses it. The triangle table
+ * (16 signed chars per cube index, -1 terminated) is generated on the host
+ * (server/src/core/mc_table.cpp) and passed in. */
+#ifndef VD_MARCHING_CUBES_H
+#define VD_MARCHING_CUBES_H
+
+#include "vd_types.h"
+
+/* Cell codes: bit 8 = valid, bits 0..7 = cube index. */
+#define VD_MC_VALID 0x100u
+
+VD_INLINE int vd_grid_index(VdVolume vol, int x, int y, int z) { return x + vol.dim_x * (y + vol.dim_y * z); }
+
+VD_INLINE vd_uint vd_mc_cell_code(VD_GLOBAL const float* tsdf, VD_GLOBAL const float* weight, VdVolume vol, int x,
+                                  int y, int z) {
+  if (x >= vol.dim_x - 1 || y >= vol.dim_y - 1 || z >= vol.dim_z - 1) return 0u;
+  vd_uint code = 0u;
+  for (int i = 0; i < 8; ++i) {
+    int idx = vd_grid_index(vol, x + (i & 1), y + ((i >> 1) & 1), z + ((i >> 2) & 1));
+    if (!(weight[idx] > 0.0f)) return 0u;
+    if (tsdf[idx] < 0.0f) code |= 1u << i;
+  }
+  return code | VD_MC_VALID;
+}
+
+/* Cell code of a neighbouring cell, 0 outside the grid. */
+VD_INLINE vd_uint vd_mc_code_at(VD_GLOBAL const vd_ushort* codes, VdVolume vol, int x, int y, int z) {
+  if (x < 0 || y < 0 || z < 0) return 0u;
+  return codes[vd_grid_index(vol, x, y, z)];
+}
+
+/* Bit a set when grid point (x, y, z) owns a vertex on its edge along axis a. */
+VD_INLINE vd_uint vd_mc_vertex_mask(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_ushort* codes, VdVolume vol,
+                                    int x, int y, int z) {
+  int idx = vd_grid_index(vol, x, y, z);
+  float d0 = tsdf[idx];
+  vd_uint mask = 0u;
+  for (int a = 0; a < 3; ++a) {
+    int nx = x + (a == 0), ny = y + (a == 1), nz = z + (a == 2);
+    if (nx >= vol.dim_x || ny >= vol.dim_y || nz >= vol.dim_z) continue;
+    float d1 = tsdf[vd_grid_index(vol, nx, ny, nz)];
+    if ((d0 < 0.0f) == (d1 < 0.0f)) continue;
+    /* The four cells around the edge: offsets -1/0 along the two other axes. */
+    vd_uint any_valid = 0u;
+    for (int k = 0; k < 4; ++k) {
+      int o0 = -(k & 1), o1 = -((k >> 1) & 1);
+      int cx = x + (a == 0 ? 0 : o0);
+      int cy = y + (a == 1 ? 0 : (a == 0 ? o0 : o1));
+      int cz = z + (a == 2 ? 0 : o1);
+      any_valid |= vd_mc_code_at(codes, vol, cx, cy, cz) & VD_MC_VALID;
+    }
+    if (any_valid) mask |= 1u << a;
+  }
+  return mask;
+}
+
+VD_INLINE int vd_popcount3(vd_uint m) { return (int)(m & 1u) + (int)((m >> 1) & 1u) + (int)((m >> 2) & 1u); }
+
+/* Central-difference gradient of the distance at a grid point (one-sided at the border). */
+VD_INLINE vd_float4 vd_tsdf_gradient(VD_GLOBAL const float* tsdf, VdVolume vol, int x, int y, int z) {
+  int xm = vd_max_i(x - 1, 0), xp = vd_min_i(x + 1, vol.dim_x - 1);
+  int ym = vd_max_i(y - 1, 0), yp = vd_min_i(y + 1, vol.dim_y - 1);
+  int zm = vd_max_i(z - 1, 0), zp = vd_min_i(z + 1, vol.dim_z - 1);
+  return VD_F4((tsdf[vd_grid_index(vol, xp, y, z)] - tsdf[vd_grid_index(vol, xm, y, z)]) / (float)(xp - xm),
+               (tsdf[vd_grid_index(vol, x, yp, z)] - tsdf[vd_grid_index(vol, x, ym, z)]) / (float)(yp - ym),
+               (tsdf[vd_grid_index(vol, x, y, zp)] - tsdf[vd_grid_index(vol, x, y, zm)]) / (float)(zp - zm), 0.0f);
+}
+
+/* Writes the vertex on edge `axis` of grid point (x, y, z): position in grid units (x + t, ...),
+ * so a vertex knows its cell and trilinear weights; outward normal; colour. */
+VD_INLINE void vd_mc_make_vertex(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_uint* color, VdVolume vol, int x,
+                                 int y, int z, int axis, vd_float4* pos_grid, vd_float4* normal, vd_uint* rgba) {
+  int nx = x + (axis == 0), ny = y + (axis == 1), nz = z + (axis == 2);
+  int i0 = vd_grid_index(vol, x, y, z), i1 = vd_grid_index(vol, nx, ny, nz);
+  float d0 = tsdf[i0], d1 = tsdf[i1];
+  float t = d0 / (d0 - d1);
+  t = vd_clampf(t, 0.0f, 1.0f);
+  *pos_grid = VD_F4((float)x + (axis == 0 ? t : 0.0f), (float)y + (axis == 1 ? t : 0.0f),
+                    (float)z + (axis == 2 ? t : 0.0f), 1.0f);
+  vd_float4 g0 = vd_tsdf_gradient(tsdf, vol, x, y, z);
+  vd_float4 g1 = vd_tsdf_gradient(tsdf, vol, nx, ny, nz);
+  *normal = vd_normalize3(g0 * (1.0f - t) + g1 * t);
+  vd_float4 c0 = vd_unpack_rgba(color[i0]);
+  vd_float4 c1 = vd_unpack_rgba(color[i1]);
+  /* A corner never coloured contributes nothing; if neither is, the vertex is mid grey. */
+  float w0 = c0.w > 0.0f ? (1.0f - t) : 0.0f;
+  float w1 = c1.w > 0.0f ? t : 0.0f;
+  vd_float4 c = (w0 + w1) > 0.0f ? (c0 * w0 + c1 * w1) / (w0 + w1) : VD_F4(128.0f, 128.0f, 128.0f, 255.0f);
+  *rgba = vd_pack_rgba(c.x, c.y, c.z, 255.0f);
+}
+
+/* Index of the welded vertex on cube edge e of cell (x, y, z). */
+VD_INLINE int vd_mc_edge_vertex(VD_GLOBAL const vd_uchar* masks, VD_GLOBAL const vd_uint* vert_offset, VdVolume vol,
+                                int x, int y, int z, int e) {
+  int axis = e >> 2;
+  int b0 = e & 1, b1 = (e >> 1) & 1;
+  int ox = axis == 0 ? 0 : b0;
+  int oy = axis == 1 ? 0 : (axis == 0 ? b0 : b1);
+  int oz = axis == 2 ? 0 : b1;
+  int owner = vd_grid_index(vol, x + ox, y + oy, z + oz);
+  vd_uint below = (vd_uint)masks[owner] & ((1u << axis) - 1u);
+  return (int)vert_offset[owner] + vd_popcount3(below);
+}
+
+#endif /* VD_MARCHING_CUBES_H */

@@ -1,0 +1,85 @@
+/* Per-pixel depth preprocessing: conversion with clipping, bilateral filter, pyramid, vertex and
+ * normal maps. Depth maps are float metres with 0 for invalid. Vertex/normal maps are float4
+ * with w = 1 where valid and w = 0 where not. */
+#ifndef VD_PREPROCESS_H
+#define VD_PREPROCESS_H
+
+#include "vd_types.h"
+
+/* Raw uint16 depth to metres, invalid outside [min_depth, max_depth]. */
+VD_INLINE float vd_depth_convert_pixel(vd_ushort raw, float inv_scale, float min_depth, float max_depth) {
+  float d = (float)raw * inv_scale;
+  return (raw != 0 && d >= min_depth && d <= max_depth) ? d : 0.0f;
+}
+
+/* Edge-preserving smoothing of one pixel (radius in pixels; sigmas in pixels and metres). */
+VD_INLINE float vd_bilateral_pixel(VD_GLOBAL const float* depth, int width, int height, int x, int y, int radius,
+                                   float inv_2sigma_space2, float inv_2sigma_depth2) {
+  float d0 = depth[y * width + x];
+  if (d0 <= 0.0f) return 0.0f;
+  float sum = 0.0f;
+  float wsum = 0.0f;
+  int y0 = vd_max_i(y - radius, 0), y1 = vd_min_i(y + radius, height - 1);
+  int x0 = vd_max_i(x - radius, 0), x1 = vd_min_i(x + radius, width - 1);
+  for (int yy = y0; yy <= y1; ++yy) {
+    for (int xx = x0; xx <= x1; ++xx) {
+      float d = depth[yy * width + xx];
+      float dd = d - d0;
+      float ds = (float)((xx - x) * (xx - x) + (yy - y) * (yy - y));
+      float w = (d > 0.0f) ? exp(-ds * inv_2sigma_space2 - dd * dd * inv_2sigma_depth2) : 0.0f;
+      sum += w * d;
+      wsum += w;
+    }
+  }
+  return sum / wsum;
+}
+
+/* Half-resolution pixel: mean of the 2x2 block's valid depths within max_diff of the block's
+ * first valid depth, so averages never straddle a depth edge. */
+VD_INLINE float vd_pyr_down_pixel(VD_GLOBAL const float* depth, int width, int x, int y, float max_diff) {
+  int sx = 2 * x, sy = 2 * y;
+  float ref = 0.0f;
+  float sum = 0.0f;
+  float n = 0.0f;
+  for (int k = 0; k < 4; ++k) {
+    float d = depth[(sy + (k >> 1)) * width + sx + (k & 1)];
+    if (d > 0.0f && ref == 0.0f) ref = d;
+    if (d > 0.0f && fabs(d - ref) <= max_diff) {
+      sum += d;
+      n += 1.0f;
+    }
+  }
+  return n > 0.0f ? sum / n : 0.0f;
+}
+
+VD_INLINE vd_float4 vd_vertex_pixel(VD_GLOBAL const float* depth, VdCamera cam, int x, int y) {
+  float d = depth[y * cam.width + x];
+  if (d <= 0.0f) return VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  return VD_F4(((float)x - cam.cx) * d / cam.fx, ((float)y - cam.cy) * d / cam.fy, d, 1.0f);
+}
+
+/* Normal from the cross product of central differences, facing the camera; invalid at the border,
+ * next to invalid pixels, and across depth jumps larger than max_jump (relative to depth). */
+VD_INLINE vd_float4 vd_normal_pixel(VD_GLOBAL const vd_float4* vmap, int width, int height, int x, int y,
+                                    float max_jump) {
+  vd_float4 invalid = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  if (x < 1 || y < 1 || x >= width - 1 || y >= height - 1) return invalid;
+  vd_float4 c = vmap[y * width + x];
+  vd_float4 l = vmap[y * width + x - 1];
+  vd_float4 r = vmap[y * width + x + 1];
+  vd_float4 u = vmap[(y - 1) * width + x];
+  vd_float4 d = vmap[(y + 1) * width + x];
+  if (c.w == 0.0f || l.w == 0.0f || r.w == 0.0f || u.w == 0.0f || d.w == 0.0f) return invalid;
+  float lim = max_jump * c.z;
+  if (fabs(r.z - l.z) > lim || fabs(d.z - u.z) > lim) return invalid;
+  vd_float4 n = vd_cross3(r - l, d - u);
+  float len = vd_length3(n);
+  if (!(len > 0.0f)) return invalid;
+  n = n / len;
+  /* Face the camera (which sits at the origin). */
+  if (vd_dot3(n, c) > 0.0f) n = -n;
+  n.w = 1.0f;
+  return n;
+}
+
+#endif /* VD_PREPROCESS_H */

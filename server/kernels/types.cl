@@ -1,0 +1,10 @@
+#include "shared/icp.h"
+
+/* Reports the device's view of the shared struct sizes, checked against the host's in a test. */
+__kernel void vd_type_sizes(__global int* out) {
+  out[0] = (int)sizeof(VdCamera);
+  out[1] = (int)sizeof(VdPose);
+  out[2] = (int)sizeof(VdVolume);
+  out[3] = (int)sizeof(VdIcpParams);
+  out[4] = (int)sizeof(float4);
+}

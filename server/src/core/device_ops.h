@@ -1,0 +1,90 @@
+#pragma once
+// Launchers of the OpenCL kernels: each mirrors a function of cpu_ref.h on device buffers.
+// Scratch buffers are owned here and grow only, so nothing is allocated per frame once warm.
+#include <cstdint>
+
+#include "ocl/ocl.h"
+#include "shared/icp.h"
+#include "shared/vd_types.h"
+
+namespace vd {
+
+struct DeviceVolume {
+  VdVolume vol{};
+  ocl::Buffer<float> tsdf;
+  ocl::Buffer<float> weight;
+  ocl::Buffer<uint32_t> color;
+  size_t num_voxels() const { return static_cast<size_t>(vol.dim_x) * vol.dim_y * vol.dim_z; }
+};
+
+struct DeviceMesh {
+  // Marching-cubes output in grid units (cell and trilinear weights implicit).
+  ocl::Buffer<vd_float4> positions_grid;
+  // Positions the rasteriser and the viewers see (world metres, deformed in the non-rigid case).
+  ocl::Buffer<vd_float4> positions;
+  ocl::Buffer<vd_float4> normals;
+  ocl::Buffer<uint32_t> colors;
+  ocl::Buffer<int32_t> triangles;
+  size_t num_vertices = 0;
+  size_t num_triangles = 0;
+};
+
+struct DeviceRaster {
+  VdCamera cam{};
+  ocl::Buffer<uint32_t> depth_bits;
+  ocl::Buffer<uint32_t> ids;
+  ocl::Buffer<vd_float4> vertex;
+  ocl::Buffer<vd_float4> normal;
+  ocl::Buffer<vd_float4> bary;
+};
+
+class DeviceOps {
+ public:
+  explicit DeviceOps(ocl::Context* ctx) : ctx_(ctx) {}
+  // Uploads the marching-cubes table.
+  Status Init();
+  ocl::Context& ctx() { return *ctx_; }
+
+  Status DepthConvert(const ocl::Buffer<uint16_t>& raw, ocl::Buffer<float>& depth, int n, float inv_scale,
+                      float min_depth, float max_depth);
+  Status Bilateral(const ocl::Buffer<float>& in, ocl::Buffer<float>& out, int width, int height, int radius,
+                   float sigma_space_px, float sigma_depth_m);
+  Status PyrDown(const ocl::Buffer<float>& in, ocl::Buffer<float>& out, int width, int height, float max_diff);
+  Status VertexMap(const ocl::Buffer<float>& depth, ocl::Buffer<vd_float4>& vmap, VdCamera cam);
+  Status NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_float4>& nmap, int width, int height,
+                   float max_jump);
+
+  Status AllocVolume(const VdVolume& vol, DeviceVolume* out);
+  Status ResetVolume(DeviceVolume& v);
+  Status IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
+                       const ocl::Buffer<uint32_t>& rgba);
+
+  // Exclusive scan of in[0, n) into out[0, n], out[n] = total (out must hold n + 1).
+  Status ScanExclusive(const ocl::Buffer<uint32_t>& in, size_t n, ocl::Buffer<uint32_t>& out, uint32_t* total);
+  // Marching cubes; fills positions_grid, normals, colors, triangles (positions untouched).
+  Status MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh);
+  // positions = origin + voxel_size * positions_grid.
+  Status GridToWorld(const VdVolume& vol, DeviceMesh* mesh);
+  Status Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out);
+  Status IcpReduce(const ocl::Buffer<vd_float4>& vmap, const ocl::Buffer<vd_float4>& nmap,
+                   const ocl::Buffer<vd_float4>& model_v, const ocl::Buffer<vd_float4>& model_n, int n,
+                   const VdIcpParams& params, double acc[VD_ICP_ACC]);
+
+ private:
+  ocl::Context* ctx_;
+  ocl::Buffer<int8_t> mc_tri_table_;
+  ocl::Buffer<uint8_t> mc_tri_counts_;
+  // Marching-cubes scratch, one entry per grid point.
+  ocl::Buffer<uint16_t> mc_codes_;
+  ocl::Buffer<uint8_t> mc_masks_;
+  ocl::Buffer<uint32_t> mc_counts_;
+  ocl::Buffer<uint32_t> mc_vert_offset_;
+  ocl::Buffer<uint32_t> mc_tri_offset_;
+  // Scan scratch per recursion level.
+  std::vector<ocl::Buffer<uint32_t>> scan_sums_;
+  std::vector<ocl::Buffer<uint32_t>> scan_offsets_;
+  ocl::Buffer<float> icp_partials_;
+  std::vector<float> icp_host_;
+};
+
+}  // namespace vd

@@ -1,0 +1,381 @@
+#include "core/engine.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include <Eigen/Cholesky>
+#include <opencv2/imgproc.hpp>
+
+#include "vd/common/log.h"
+
+namespace vd {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double MsSince(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+VdCamera ToVdCamera(const Intrinsics& k) {
+  VdCamera c{};
+  c.fx = k.fx;
+  c.fy = k.fy;
+  c.cx = k.cx;
+  c.cy = k.cy;
+  c.width = k.width;
+  c.height = k.height;
+  return c;
+}
+
+VdCamera ScaledCamera(const VdCamera& c, int level) {
+  Intrinsics k{c.fx, c.fy, c.cx, c.cy, c.width, c.height};
+  return ToVdCamera(k.Scaled(level));
+}
+
+Status Bad(const char* field, double value, const char* bound) {
+  std::ostringstream os;
+  os << "EngineParams." << field << " = " << value << " violates " << bound;
+  return InvalidArgument(os.str());
+}
+
+int64_t ProcStatusKb(const char* key) {
+  std::ifstream in("/proc/self/status");
+  std::string line;
+  const size_t n = std::strlen(key);
+  while (std::getline(in, line))
+    if (line.compare(0, n, key) == 0) return std::atoll(line.c_str() + n + 1);
+  return 0;
+}
+
+}  // namespace
+
+VdPose ToVdPose(const Eigen::Matrix4d& T) {
+  VdPose p;
+  p.r0 = VD_F4(float(T(0, 0)), float(T(0, 1)), float(T(0, 2)), float(T(0, 3)));
+  p.r1 = VD_F4(float(T(1, 0)), float(T(1, 1)), float(T(1, 2)), float(T(1, 3)));
+  p.r2 = VD_F4(float(T(2, 0)), float(T(2, 1)), float(T(2, 2)), float(T(2, 3)));
+  return p;
+}
+
+int64_t ResidentBytes() { return ProcStatusKb("VmRSS:") * 1024; }
+int64_t PeakResidentBytes() { return ProcStatusKb("VmHWM:") * 1024; }
+
+Status EngineParams::Validate() const {
+  if (!(voxel_size >= 0.0005f && voxel_size <= 0.1f)) return Bad("voxel_size", voxel_size, "0.0005 <= voxel_size <= 0.1 m");
+  if (!(truncation_voxels >= 1.f && truncation_voxels <= 50.f))
+    return Bad("truncation_voxels", truncation_voxels, "1 <= truncation_voxels <= 50");
+  if (!(max_weight >= 1.f && max_weight <= 1e4f)) return Bad("max_weight", max_weight, "1 <= max_weight <= 1e4");
+  if (!(min_depth >= 0.f && min_depth < max_depth)) return Bad("min_depth", min_depth, "0 <= min_depth < max_depth");
+  if (!(max_depth <= 20.f)) return Bad("max_depth", max_depth, "max_depth <= 20 m");
+  if (!(max_voxels >= 1000 && max_voxels <= 400ll * 1000 * 1000))
+    return Bad("max_voxels", double(max_voxels), "1e3 <= max_voxels <= 4e8");
+  if (!(volume_margin >= 0.f && volume_margin <= 2.f)) return Bad("volume_margin", volume_margin, "0 <= volume_margin <= 2 m");
+  if (!(bilateral_radius >= 1 && bilateral_radius <= 7)) return Bad("bilateral_radius", bilateral_radius, "1 <= r <= 7");
+  if (!(bilateral_sigma_space_px > 0.f)) return Bad("bilateral_sigma_space_px", bilateral_sigma_space_px, "> 0");
+  if (!(bilateral_sigma_depth_m > 0.f)) return Bad("bilateral_sigma_depth_m", bilateral_sigma_depth_m, "> 0");
+  for (int it : icp_iterations)
+    if (it < 0 || it > 100) return Bad("icp_iterations", it, "0 <= iterations <= 100");
+  if (!(icp_max_distance > 0.f)) return Bad("icp_max_distance", icp_max_distance, "> 0");
+  if (!(icp_max_normal_angle_deg > 0.f && icp_max_normal_angle_deg <= 90.f))
+    return Bad("icp_max_normal_angle_deg", icp_max_normal_angle_deg, "0 < angle <= 90");
+  if (!(min_inlier_fraction >= 0.f && min_inlier_fraction < 1.f))
+    return Bad("min_inlier_fraction", min_inlier_fraction, "0 <= f < 1");
+  if (!(max_frame_translation > 0.f)) return Bad("max_frame_translation", max_frame_translation, "> 0");
+  if (!(max_frame_rotation_deg > 0.f)) return Bad("max_frame_rotation_deg", max_frame_rotation_deg, "> 0");
+  return Status::Ok();
+}
+
+StatusOr<std::unique_ptr<Engine>> Engine::Create(const EngineParams& params, const std::string& device_spec) {
+  VD_RETURN_IF_ERROR(params.Validate());
+  VD_ASSIGN_OR_RETURN(auto ctx, ocl::Context::Create(device_spec));
+  std::unique_ptr<Engine> e(new Engine(params, std::move(ctx)));
+  VD_RETURN_IF_ERROR(e->ops_.Init());
+  return e;
+}
+
+Engine::Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx)
+    : params_(params), ctx_(std::move(ctx)), ops_(ctx_.get()) {}
+
+void Engine::Reset() {
+  initialised_ = false;
+  frames_fused_ = 0;
+  pose_ = model_pose_ = Eigen::Matrix4d::Identity();
+  mesh_.num_vertices = mesh_.num_triangles = 0;
+}
+
+StatusOr<VdVolume> Engine::PlaceVolume(const RgbdFrame& frame, const EngineParams& p) {
+  // Robust bounds of the valid points: 1st and 99th percentile per axis.
+  std::vector<float> xs, ys, zs;
+  const Intrinsics& k = frame.intrinsics;
+  const float inv = 1.f / frame.depth_scale;
+  for (int y = 0; y < frame.depth.rows; y += 2) {
+    const uint16_t* row = frame.depth.ptr<uint16_t>(y);
+    for (int x = 0; x < frame.depth.cols; x += 2) {
+      const float d = row[x] * inv;
+      if (row[x] == 0 || d < p.min_depth || d > p.max_depth) continue;
+      xs.push_back((x - k.cx) * d / k.fx);
+      ys.push_back((y - k.cy) * d / k.fy);
+      zs.push_back(d);
+    }
+  }
+  if (zs.size() < 100) {
+    return FailedPrecondition("the first frame has only " + std::to_string(zs.size() * 4) +
+                              " valid depth pixels in [min_depth, max_depth]; cannot place the volume");
+  }
+  auto pct = [](std::vector<float>& v, double q) {
+    const size_t i = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1)));
+    std::nth_element(v.begin(), v.begin() + i, v.end());
+    return v[i];
+  };
+  const float lo[3] = {pct(xs, 0.01), pct(ys, 0.01), pct(zs, 0.01)};
+  const float hi[3] = {pct(xs, 0.99), pct(ys, 0.99), pct(zs, 0.99)};
+  const float trunc = p.truncation_voxels * p.voxel_size;
+  VdVolume vol{};
+  float mn[3], ext[3];
+  int dims[3];
+  for (int a = 0; a < 3; ++a) {
+    const float margin = p.volume_margin + 2.f * trunc;
+    mn[a] = lo[a] - margin;
+    ext[a] = hi[a] - lo[a] + 2.f * margin;
+  }
+  // Shrink around the centre until the grid fits the budget (the far part goes first in z).
+  double scale = 1.0;
+  for (int iter = 0; iter < 64; ++iter) {
+    int64_t total = 1;
+    for (int a = 0; a < 3; ++a) {
+      dims[a] = std::max(8, static_cast<int>(std::ceil(ext[a] * scale / p.voxel_size)) + 1);
+      total *= dims[a];
+    }
+    if (total <= p.max_voxels) break;
+    scale *= 0.95;
+  }
+  int64_t total = int64_t(dims[0]) * dims[1] * dims[2];
+  if (total > p.max_voxels) return FailedPrecondition("volume does not fit max_voxels");
+  if (scale < 1.0) {
+    VD_LOG_WARNING << "first frame spans " << ext[0] << " x " << ext[1] << " x " << ext[2] << " m; the grid of "
+                   << p.voxel_size * 1000 << " mm voxels is limited to " << p.max_voxels
+                   << " points, so it covers " << scale * 100 << "% of each side (nearest part kept in depth)";
+    for (int a = 0; a < 2; ++a) mn[a] += 0.5f * float(1.0 - scale) * ext[a];
+  }
+  vol.origin = VD_F4(mn[0], mn[1], mn[2], 1.f);
+  vol.dim_x = dims[0];
+  vol.dim_y = dims[1];
+  vol.dim_z = dims[2];
+  vol.voxel_size = p.voxel_size;
+  vol.truncation = trunc;
+  vol.max_weight = p.max_weight;
+  return vol;
+}
+
+Status Engine::Preprocess(const RgbdFrame& frame) {
+  const Intrinsics& k = frame.intrinsics;
+  const size_t n = static_cast<size_t>(k.width) * k.height;
+  cam_ = ToVdCamera(k);
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&raw_depth_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&rgba_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&depth_raw_m_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&scratch_, n));
+  for (int l = 0; l < 3; ++l) {
+    const size_t nl = static_cast<size_t>(k.width >> l) * (k.height >> l);
+    VD_RETURN_IF_ERROR(ctx_->Reserve(&depth_[l], nl));
+    VD_RETURN_IF_ERROR(ctx_->Reserve(&vmap_[l], nl));
+    VD_RETURN_IF_ERROR(ctx_->Reserve(&nmap_[l], nl));
+  }
+  const cv::Mat depth = frame.depth.isContinuous() ? frame.depth : frame.depth.clone();
+  VD_RETURN_IF_ERROR(ctx_->Upload(raw_depth_, depth.ptr<uint16_t>(), n));
+  rgba_host_.resize(n);
+  if (frame.color.empty()) {
+    std::fill(rgba_host_.begin(), rgba_host_.end(), 0u);
+  } else {
+    cv::Mat rgba(k.height, k.width, CV_8UC4, rgba_host_.data());
+    cv::cvtColor(frame.color, rgba, cv::COLOR_BGR2RGBA);
+  }
+  VD_RETURN_IF_ERROR(ctx_->Upload(rgba_, rgba_host_.data(), n));
+  VD_RETURN_IF_ERROR(
+      ops_.DepthConvert(raw_depth_, depth_raw_m_, int(n), 1.f / frame.depth_scale, params_.min_depth, params_.max_depth));
+  if (params_.bilateral) {
+    VD_RETURN_IF_ERROR(ops_.Bilateral(depth_raw_m_, depth_[0], k.width, k.height, params_.bilateral_radius,
+                                      params_.bilateral_sigma_space_px, params_.bilateral_sigma_depth_m));
+  } else {
+    VD_RETURN_IF_ERROR(ctx_->Copy(depth_raw_m_, depth_[0], n));
+  }
+  for (int l = 0; l < 3; ++l) {
+    const VdCamera cl = ScaledCamera(cam_, l);
+    if (l > 0) VD_RETURN_IF_ERROR(ops_.PyrDown(depth_[l - 1], depth_[l], k.width >> (l - 1), k.height >> (l - 1), 0.05f));
+    VD_RETURN_IF_ERROR(ops_.VertexMap(depth_[l], vmap_[l], cl));
+    VD_RETURN_IF_ERROR(ops_.NormalMap(vmap_[l], nmap_[l], cl.width, cl.height, params_.normal_max_jump));
+  }
+  return ctx_->Finish();
+}
+
+Status Engine::Track(FrameResult* result) {
+  const float min_dot = std::cos(params_.icp_max_normal_angle_deg * float(M_PI) / 180.f);
+  Eigen::Matrix4d T = pose_;
+  const Eigen::Matrix4d model_inv = model_pose_.inverse();
+  int inliers = 0;
+  double sq = 0.0;
+  for (int l = 2; l >= 0; --l) {
+    const VdCamera cl = ScaledCamera(cam_, l);
+    for (int it = 0; it < params_.icp_iterations[l]; ++it) {
+      VdIcpParams prm{};
+      prm.cam_to_world = ToVdPose(T);
+      prm.world_to_model = ToVdPose(model_inv);
+      prm.model_to_world = ToVdPose(model_pose_);
+      prm.model_cam = model_.cam;
+      prm.max_distance = params_.icp_max_distance;
+      prm.min_normal_dot = min_dot;
+      double acc[VD_ICP_ACC];
+      VD_RETURN_IF_ERROR(ops_.IcpReduce(vmap_[l], nmap_[l], model_.vertex, model_.normal, cl.width * cl.height, prm, acc));
+      inliers = int(acc[28]);
+      sq = acc[27];
+      if (inliers < 6) break;
+      Eigen::Matrix<double, 6, 6> A;
+      Eigen::Matrix<double, 6, 1> b;
+      int q = 0;
+      for (int r = 0; r < 6; ++r)
+        for (int c = r; c < 6; ++c) A(r, c) = A(c, r) = acc[q++];
+      for (int r = 0; r < 6; ++r) b(r) = acc[21 + r];
+      const Eigen::Matrix<double, 6, 1> xi = A.ldlt().solve(-b);
+      if (!xi.allFinite()) break;
+      const Eigen::Vector3d w = xi.head<3>();
+      Eigen::Matrix4d dT = Eigen::Matrix4d::Identity();
+      const double angle = w.norm();
+      if (angle > 1e-12) dT.topLeftCorner<3, 3>() = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
+      dT.topRightCorner<3, 1>() = xi.tail<3>();
+      T = dT * T;
+      if (xi.norm() < 1e-6) break;
+    }
+  }
+  result->icp_inliers = inliers;
+  result->icp_rmse = inliers > 0 ? float(std::sqrt(sq / inliers)) : 0.f;
+  // Failure checks: too few inliers, or an implausible jump.
+  int valid = 0;
+  {
+    std::vector<float> d(static_cast<size_t>(cam_.width) * cam_.height);
+    VD_RETURN_IF_ERROR(ctx_->Download(depth_raw_m_, d.data(), d.size()));
+    for (float v : d) valid += v > 0.f;
+  }
+  const Eigen::Matrix4d delta = pose_.inverse() * T;
+  const double dt = delta.topRightCorner<3, 1>().norm();
+  const double dr = Eigen::AngleAxisd(Eigen::Matrix3d(delta.topLeftCorner<3, 3>())).angle() * 180.0 / M_PI;
+  std::ostringstream why;
+  if (inliers < params_.min_inlier_fraction * valid) {
+    why << "too few ICP inliers (" << inliers << " of " << valid << " valid pixels)";
+  } else if (dt > params_.max_frame_translation || dr > params_.max_frame_rotation_deg) {
+    why << "implausible motion (" << dt * 1000 << " mm, " << dr << " deg in one frame)";
+  } else if (!T.allFinite()) {
+    why << "non-finite pose";
+  }
+  if (!why.str().empty()) {
+    result->tracking_ok = false;
+    result->tracking_message = why.str() + "; kept the last good pose";
+    return Status::Ok();
+  }
+  pose_ = T;
+  return Status::Ok();
+}
+
+Status Engine::ExtractMesh(FrameResult* result, bool download) {
+  auto t0 = Clock::now();
+  VD_RETURN_IF_ERROR(ops_.MarchingCubes(volume_, &mesh_));
+  VD_RETURN_IF_ERROR(ops_.GridToWorld(volume_.vol, &mesh_));
+  VD_RETURN_IF_ERROR(ctx_->Finish());
+  result->times.ms[4] = MsSince(t0);
+  if (!download) return Status::Ok();
+  t0 = Clock::now();
+  const size_t nv = mesh_.num_vertices, nt = mesh_.num_triangles;
+  std::vector<vd_float4> pos(nv), nrm(nv);
+  std::vector<uint32_t> col(nv);
+  TriangleMesh& canon = result->canonical_mesh;
+  canon.triangles.resize(3 * nt);
+  VD_RETURN_IF_ERROR(ctx_->Download(mesh_.positions, pos.data(), nv));
+  VD_RETURN_IF_ERROR(ctx_->Download(mesh_.normals, nrm.data(), nv));
+  VD_RETURN_IF_ERROR(ctx_->Download(mesh_.colors, col.data(), nv));
+  VD_RETURN_IF_ERROR(ctx_->Download(mesh_.triangles, canon.triangles.data(), 3 * nt));
+  canon.positions.resize(3 * nv);
+  canon.normals.resize(3 * nv);
+  canon.colors.resize(3 * nv);
+  TriangleMesh& live = result->live_mesh;
+  live.positions.resize(3 * nv);
+  live.normals.resize(3 * nv);
+  live.colors.resize(3 * nv);
+  live.triangles = canon.triangles;
+  const Eigen::Matrix4d inv = pose_.inverse();
+  const Eigen::Matrix3f R = inv.topLeftCorner<3, 3>().cast<float>();
+  const Eigen::Vector3f t = inv.topRightCorner<3, 1>().cast<float>();
+  for (size_t i = 0; i < nv; ++i) {
+    const Eigen::Vector3f p(pos[i].x, pos[i].y, pos[i].z), n(nrm[i].x, nrm[i].y, nrm[i].z);
+    const Eigen::Vector3f pc = R * p + t, nc = R * n;
+    for (int a = 0; a < 3; ++a) {
+      canon.positions[3 * i + a] = p[a];
+      canon.normals[3 * i + a] = n[a];
+      live.positions[3 * i + a] = pc[a];
+      live.normals[3 * i + a] = nc[a];
+      live.colors[3 * i + a] = canon.colors[3 * i + a] = uint8_t((col[i] >> (8 * a)) & 255u);
+    }
+  }
+  result->times.ms[5] = MsSince(t0);
+  return Status::Ok();
+}
+
+StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
+  VD_RETURN_IF_ERROR(frame.Validate());
+  if (initialised_ && (frame.intrinsics.width != cam_.width || frame.intrinsics.height != cam_.height))
+    return InvalidArgument("frame size changed from " + std::to_string(cam_.width) + "x" + std::to_string(cam_.height) +
+                           " to " + std::to_string(frame.intrinsics.width) + "x" +
+                           std::to_string(frame.intrinsics.height) + "; reset the model first");
+  FrameResult result;
+  result.seq = frame.seq;
+  auto t0 = Clock::now();
+  VD_RETURN_IF_ERROR(Preprocess(frame));
+  result.times.ms[0] = MsSince(t0);
+
+  if (!initialised_) {
+    VD_ASSIGN_OR_RETURN(VdVolume vol, PlaceVolume(frame, params_));
+    if (volume_.num_voxels() != size_t(vol.dim_x) * vol.dim_y * vol.dim_z) {
+      volume_ = DeviceVolume();
+      VD_RETURN_IF_ERROR(ops_.AllocVolume(vol, &volume_));
+    } else {
+      volume_.vol = vol;
+      VD_RETURN_IF_ERROR(ops_.ResetVolume(volume_));
+    }
+    VD_LOG_INFO << "volume " << vol.dim_x << "x" << vol.dim_y << "x" << vol.dim_z << " at " << vol.voxel_size * 1000
+                << " mm, origin (" << vol.origin.x << ", " << vol.origin.y << ", " << vol.origin.z << ")";
+    pose_ = model_pose_ = Eigen::Matrix4d::Identity();
+    initialised_ = true;
+  } else {
+    t0 = Clock::now();
+    VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, ToVdPose(model_pose_.inverse()), cam_, &model_));
+    VD_RETURN_IF_ERROR(ctx_->Finish());
+    result.times.ms[1] = MsSince(t0);
+    t0 = Clock::now();
+    VD_RETURN_IF_ERROR(Track(&result));
+    result.times.ms[2] = MsSince(t0);
+  }
+  result.pose = pose_;
+  if (result.tracking_ok) {
+    t0 = Clock::now();
+    VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
+    VD_RETURN_IF_ERROR(ctx_->Finish());
+    result.times.ms[3] = MsSince(t0);
+    ++frames_fused_;
+  }
+  VD_RETURN_IF_ERROR(ExtractMesh(&result, true));
+  model_pose_ = pose_;
+  result.active_voxels = int64_t(mesh_.num_vertices);
+  return result;
+}
+
+Status Engine::DownloadVolume(std::vector<float>* tsdf, std::vector<float>* weight, std::vector<uint32_t>* color) {
+  const size_t n = volume_.num_voxels();
+  tsdf->resize(n);
+  weight->resize(n);
+  color->resize(n);
+  VD_RETURN_IF_ERROR(ctx_->Download(volume_.tsdf, tsdf->data(), n));
+  VD_RETURN_IF_ERROR(ctx_->Download(volume_.weight, weight->data(), n));
+  return ctx_->Download(volume_.color, color->data(), n);
+}
+
+}  // namespace vd

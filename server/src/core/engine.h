@@ -1,0 +1,135 @@
+#pragma once
+// The reconstruction engine: one RGB-D frame in, the live mesh, the pose and statistics out.
+// Every heavy step runs as an OpenCL kernel (server/kernels); this class orders them.
+#include <array>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "core/device_ops.h"
+#include "vd/common/frame.h"
+#include "vd/common/mesh.h"
+#include "vd/common/status.h"
+
+namespace vd {
+
+struct EngineParams {
+  // Edge length of a grid cell, metres. The paper's grids are a few millimetres.
+  float voxel_size = 0.004f;
+  // Truncation band in voxels: wide enough for the sensor's noise at ~1 m, narrow enough for detail.
+  float truncation_voxels = 4.f;
+  // Weight cap of the running average: higher = smoother, slower to follow change.
+  float max_weight = 64.f;
+  // Depth outside [min_depth, max_depth] metres is ignored (Kinect-class sensors: 0.4..4 m).
+  float min_depth = 0.2f;
+  float max_depth = 3.5f;
+  // Largest grid, in grid points, the automatic placement may allocate (12 bytes each).
+  int64_t max_voxels = 48ll * 1000 * 1000;
+  // Space left around the first frame's points when placing the grid, metres.
+  float volume_margin = 0.10f;
+  // Edge-preserving smoothing of the depth used for tracking (fusion uses the raw depth).
+  bool bilateral = true;
+  int bilateral_radius = 2;
+  float bilateral_sigma_space_px = 3.f;
+  float bilateral_sigma_depth_m = 0.02f;
+  // Normals are dropped across depth jumps larger than this fraction of the depth.
+  float normal_max_jump = 0.05f;
+  // ICP iterations per pyramid level, coarsest last (level 0 = full resolution).
+  std::array<int, 3> icp_iterations = {10, 5, 4};
+  // Correspondences farther apart than this are rejected, metres.
+  float icp_max_distance = 0.10f;
+  // Correspondences whose normals differ by more than this are rejected, degrees.
+  float icp_max_normal_angle_deg = 30.f;
+  // Tracking fails when fewer pixels than this fraction of the valid ones are inliers ...
+  float min_inlier_fraction = 0.10f;
+  // ... or the pose moves more than this per frame (the sensor does not teleport).
+  float max_frame_translation = 0.20f;
+  float max_frame_rotation_deg = 30.f;
+  Status Validate() const;
+};
+
+// Wall-clock milliseconds of each stage of the last frame.
+struct StageTimes {
+  static constexpr int kCount = 6;
+  static constexpr const char* kNames[kCount] = {"preprocess", "raster", "icp", "integrate", "marching_cubes",
+                                                 "download"};
+  std::array<double, kCount> ms{};
+};
+
+struct FrameResult {
+  int64_t seq = 0;
+  // Camera-to-world pose estimated for this frame (world = first frame's camera coordinates).
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+  // False when tracking failed: the frame was not fused and the last good pose was kept.
+  bool tracking_ok = true;
+  std::string tracking_message;
+  // Live mesh in this frame's camera coordinates, and the same vertices/faces in canonical pose.
+  TriangleMesh live_mesh;
+  TriangleMesh canonical_mesh;
+  StageTimes times;
+  int icp_inliers = 0;
+  float icp_rmse = 0.f;
+  int64_t active_voxels = 0;
+};
+
+class Engine {
+ public:
+  // device_spec as for ocl::Context::Create.
+  static StatusOr<std::unique_ptr<Engine>> Create(const EngineParams& params, const std::string& device_spec);
+
+  // Processes one frame. Errors are returned for bad input or device failure; a tracking failure
+  // is a successful call with tracking_ok == false.
+  StatusOr<FrameResult> Process(const RgbdFrame& frame);
+  // Drops the model; the next frame starts a new one.
+  void Reset();
+
+  const EngineParams& params() const { return params_; }
+  std::string DeviceDescription() const { return ctx_->Describe(); }
+  bool has_model() const { return initialised_; }
+  const VdVolume& volume() const { return volume_.vol; }
+  size_t device_peak_bytes() const { return ctx_->peak_bytes(); }
+  // Downloads the grid (for snapshots and tests).
+  Status DownloadVolume(std::vector<float>* tsdf, std::vector<float>* weight, std::vector<uint32_t>* color);
+
+  // Grid placement from the first frame's valid depth (exposed for tests).
+  static StatusOr<VdVolume> PlaceVolume(const RgbdFrame& frame, const EngineParams& params);
+
+ private:
+  Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx);
+  Status Preprocess(const RgbdFrame& frame);
+  Status Track(FrameResult* result);
+  Status ExtractMesh(FrameResult* result, bool download);
+
+  EngineParams params_;
+  std::unique_ptr<ocl::Context> ctx_;
+  DeviceOps ops_;
+  bool initialised_ = false;
+  int64_t frames_fused_ = 0;
+  DeviceVolume volume_;
+  DeviceMesh mesh_;
+  DeviceRaster model_;
+  Eigen::Matrix4d pose_ = Eigen::Matrix4d::Identity();
+  // Pose at which mesh_ was last rendered into model_.
+  Eigen::Matrix4d model_pose_ = Eigen::Matrix4d::Identity();
+  VdCamera cam_{};
+  // Per-frame input and pyramid; sized on the first frame and whenever the size changes.
+  ocl::Buffer<uint16_t> raw_depth_;
+  ocl::Buffer<uint32_t> rgba_;
+  ocl::Buffer<float> depth_raw_m_;
+  std::array<ocl::Buffer<float>, 3> depth_;
+  std::array<ocl::Buffer<vd_float4>, 3> vmap_;
+  std::array<ocl::Buffer<vd_float4>, 3> nmap_;
+  ocl::Buffer<float> scratch_;
+  std::vector<uint32_t> rgba_host_;
+};
+
+// Conversions between Eigen poses and the kernels' VdPose.
+VdPose ToVdPose(const Eigen::Matrix4d& T);
+// Process resident set size now and at its peak, bytes (from /proc/self/status).
+int64_t ResidentBytes();
+int64_t PeakResidentBytes();
+
+}  // namespace vd

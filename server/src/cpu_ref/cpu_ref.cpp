@@ -1,0 +1,137 @@
+#include "cpu_ref/cpu_ref.h"
+
+#include <numeric>
+
+#include "core/mc_table.h"
+#include "shared/marching_cubes.h"
+#include "shared/preprocess.h"
+#include "shared/raster.h"
+#include "shared/tsdf.h"
+
+namespace vd::cpu {
+
+void DepthConvert(const uint16_t* raw, float* depth, int n, float inv_scale, float min_depth, float max_depth) {
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) depth[i] = vd_depth_convert_pixel(raw[i], inv_scale, min_depth, max_depth);
+}
+
+void Bilateral(const float* in, float* out, int width, int height, int radius, float sigma_space_px,
+               float sigma_depth_m) {
+  const float is = 0.5f / (sigma_space_px * sigma_space_px);
+  const float id = 0.5f / (sigma_depth_m * sigma_depth_m);
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < width * height; ++i) out[i] = vd_bilateral_pixel(in, width, height, i % width, i / width, radius, is, id);
+}
+
+void PyrDown(const float* in, float* out, int width, int height, float max_diff) {
+  const int ow = width / 2, oh = height / 2;
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < ow * oh; ++i) out[i] = vd_pyr_down_pixel(in, width, i % ow, i / ow, max_diff);
+}
+
+void VertexMap(const float* depth, vd_float4* vmap, VdCamera cam) {
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < cam.width * cam.height; ++i) vmap[i] = vd_vertex_pixel(depth, cam, i % cam.width, i / cam.width);
+}
+
+void NormalMap(const vd_float4* vmap, vd_float4* nmap, int width, int height, float max_jump) {
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < width * height; ++i) nmap[i] = vd_normal_pixel(vmap, width, height, i % width, i / width, max_jump);
+}
+
+void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                   const float* depth, const uint32_t* rgba) {
+  const int n = vol.dim_x * vol.dim_y * vol.dim_z;
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) vd_tsdf_integrate_voxel(tsdf, weight, color, i, vol, cam, world_to_cam, depth, rgba);
+}
+
+McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* color, VdVolume vol) {
+  const McTable& table = GetMcTable();
+  const int n = vol.dim_x * vol.dim_y * vol.dim_z;
+  std::vector<uint16_t> codes(n);
+  std::vector<uint8_t> masks(n);
+  std::vector<uint32_t> vert_count(n), tri_count(n);
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    const int x = i % vol.dim_x, yz = i / vol.dim_x;
+    codes[i] = static_cast<uint16_t>(vd_mc_cell_code(tsdf, weight, vol, x, yz % vol.dim_y, yz / vol.dim_y));
+    tri_count[i] = (codes[i] & VD_MC_VALID) ? table.counts[codes[i] & 255] : 0;
+  }
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    const int x = i % vol.dim_x, yz = i / vol.dim_x;
+    masks[i] = static_cast<uint8_t>(vd_mc_vertex_mask(tsdf, codes.data(), vol, x, yz % vol.dim_y, yz / vol.dim_y));
+    vert_count[i] = static_cast<uint32_t>(vd_popcount3(masks[i]));
+  }
+  // Independent of the device's chunked scan: the standard library's.
+  std::vector<uint32_t> vert_offset(n), tri_offset(n);
+  std::exclusive_scan(vert_count.begin(), vert_count.end(), vert_offset.begin(), 0u);
+  std::exclusive_scan(tri_count.begin(), tri_count.end(), tri_offset.begin(), 0u);
+  const uint32_t nv = n ? vert_offset[n - 1] + vert_count[n - 1] : 0;
+  const uint32_t nt = n ? tri_offset[n - 1] + tri_count[n - 1] : 0;
+  McMesh mesh;
+  mesh.positions_grid.resize(nv);
+  mesh.normals.resize(nv);
+  mesh.colors.resize(nv);
+  mesh.triangles.resize(3 * static_cast<size_t>(nt));
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    if (!masks[i]) continue;
+    const int x = i % vol.dim_x, yz = i / vol.dim_x, y = yz % vol.dim_y, z = yz / vol.dim_y;
+    uint32_t out = vert_offset[i];
+    for (int a = 0; a < 3; ++a) {
+      if (!(masks[i] & (1u << a))) continue;
+      vd_mc_make_vertex(tsdf, color, vol, x, y, z, a, &mesh.positions_grid[out], &mesh.normals[out], &mesh.colors[out]);
+      ++out;
+    }
+  }
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    if (!(codes[i] & VD_MC_VALID)) continue;
+    const int x = i % vol.dim_x, yz = i / vol.dim_x, y = yz % vol.dim_y, z = yz / vol.dim_y;
+    const int8_t* row = &table.triangles[16 * (codes[i] & 255)];
+    for (int k = 0; row[k] >= 0; ++k)
+      mesh.triangles[3 * static_cast<size_t>(tri_offset[i]) + k] =
+          vd_mc_edge_vertex(masks.data(), vert_offset.data(), vol, x, y, z, row[k]);
+  }
+  return mesh;
+}
+
+void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32_t* triangles, int num_triangles,
+               VdPose world_to_cam, VdCamera cam, RasterMaps* out) {
+  const int n = cam.width * cam.height;
+  out->depth_bits.assign(n, VD_RASTER_EMPTY);
+  out->ids.assign(n, VD_RASTER_EMPTY);
+  out->vertex.resize(n);
+  out->normal.resize(n);
+  out->bary.resize(n);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (int t = 0; t < num_triangles; ++t)
+    vd_raster_depth_triangle(positions, triangles, t, world_to_cam, cam, out->depth_bits.data());
+#pragma omp parallel for schedule(dynamic, 256)
+  for (int t = 0; t < num_triangles; ++t)
+    vd_raster_id_triangle(positions, triangles, t, world_to_cam, cam, out->depth_bits.data(), out->ids.data());
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i)
+    vd_raster_resolve_pixel(positions, normals, triangles, world_to_cam, cam, i, out->ids.data(), &out->vertex[i],
+                            &out->normal[i], &out->bary[i]);
+}
+
+void IcpReduce(const vd_float4* vmap, const vd_float4* nmap, const vd_float4* model_v, const vd_float4* model_n,
+               int n, VdIcpParams params, double acc[VD_ICP_ACC]) {
+  for (int k = 0; k < VD_ICP_ACC; ++k) acc[k] = 0.0;
+  // Per-row float partials summed in double, the same shape of summation as the device.
+  constexpr int kChunk = 64;
+  const int chunks = (n + kChunk - 1) / kChunk;
+  std::vector<float> partial(static_cast<size_t>(chunks) * VD_ICP_ACC, 0.f);
+#pragma omp parallel for schedule(static)
+  for (int g = 0; g < chunks; ++g) {
+    float* a = &partial[static_cast<size_t>(g) * VD_ICP_ACC];
+    for (int i = g * kChunk; i < std::min(n, (g + 1) * kChunk); ++i) vd_icp_pixel(vmap, nmap, model_v, model_n, i, params, a);
+  }
+  for (int g = 0; g < chunks; ++g)
+    for (int k = 0; k < VD_ICP_ACC; ++k) acc[k] += partial[static_cast<size_t>(g) * VD_ICP_ACC + k];
+}
+
+}  // namespace vd::cpu

@@ -1,0 +1,47 @@
+#pragma once
+// CPU references of every kernel: the same shared per-item functions looped on the host (with
+// OpenMP). They are the test oracle for the OpenCL kernels and the native baseline of the
+// benchmarks. Kernels built on prefix sums (marching cubes) get an independent reference.
+#include <cstdint>
+#include <vector>
+
+#include "shared/icp.h"
+#include "shared/vd_types.h"
+
+namespace vd::cpu {
+
+void DepthConvert(const uint16_t* raw, float* depth, int n, float inv_scale, float min_depth, float max_depth);
+void Bilateral(const float* in, float* out, int width, int height, int radius, float sigma_space_px,
+               float sigma_depth_m);
+// out is (width / 2) x (height / 2).
+void PyrDown(const float* in, float* out, int width, int height, float max_diff);
+void VertexMap(const float* depth, vd_float4* vmap, VdCamera cam);
+void NormalMap(const vd_float4* vmap, vd_float4* nmap, int width, int height, float max_jump);
+
+void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                   const float* depth, const uint32_t* rgba);
+
+struct McMesh {
+  // Vertex positions in grid units (x + t, y, z): cell and trilinear weights are implicit.
+  std::vector<vd_float4> positions_grid;
+  std::vector<vd_float4> normals;
+  std::vector<uint32_t> colors;
+  std::vector<int32_t> triangles;
+};
+McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* color, VdVolume vol);
+
+struct RasterMaps {
+  std::vector<uint32_t> depth_bits;
+  std::vector<uint32_t> ids;
+  std::vector<vd_float4> vertex;
+  std::vector<vd_float4> normal;
+  std::vector<vd_float4> bary;
+};
+void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32_t* triangles, int num_triangles,
+               VdPose world_to_cam, VdCamera cam, RasterMaps* out);
+
+// Sums the ICP normal equations over all pixels in double precision.
+void IcpReduce(const vd_float4* vmap, const vd_float4* nmap, const vd_float4* model_v, const vd_float4* model_n,
+               int n, VdIcpParams params, double acc[VD_ICP_ACC]);
+
+}  // namespace vd::cpu

@@ -1,0 +1,212 @@
+#pragma once
+// OpenCL runtime: device selection, the embedded program built once, RAII buffers and checked
+// kernel launches. Every OpenCL call is checked and reported with its error name and call site.
+#ifndef CL_TARGET_OPENCL_VERSION
+#define CL_TARGET_OPENCL_VERSION 120
+#endif
+#include <CL/cl.h>
+
+#include <cstddef>
+#include <algorithm>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+#include "vd/common/status.h"
+
+namespace vd::ocl {
+
+const char* ErrorName(cl_int err);
+Status ClError(cl_int err, const char* call, const char* file, int line);
+
+#define VD_CL_CHECK(call)                                                        \
+  do {                                                                           \
+    cl_int vd_cl_err_ = (call);                                                  \
+    if (vd_cl_err_ != CL_SUCCESS) return ::vd::ocl::ClError(vd_cl_err_, #call, __FILE__, __LINE__); \
+  } while (0)
+
+struct DeviceInfo {
+  int platform_index = 0;
+  int device_index = 0;
+  // Index over all devices of all platforms, as --device takes it.
+  int global_index = 0;
+  std::string platform_name;
+  std::string device_name;
+  bool is_gpu = false;
+  bool is_cpu = false;
+  cl_device_id id = nullptr;
+  cl_platform_id platform = nullptr;
+};
+
+// All devices of all platforms. An error only when the ICD loader itself fails.
+StatusOr<std::vector<DeviceInfo>> ListDevices();
+// One line per device, for error messages and --list-devices.
+std::string DescribeDevices(const std::vector<DeviceInfo>& devices);
+
+class Context;
+
+// A device buffer of n elements of T; movable, released on destruction.
+template <typename T>
+class Buffer {
+ public:
+  Buffer() = default;
+  Buffer(const Buffer&) = delete;
+  Buffer& operator=(const Buffer&) = delete;
+  Buffer(Buffer&& o) noexcept : mem_(o.mem_), size_(o.size_), counter_(o.counter_) {
+    o.mem_ = nullptr;
+    o.size_ = 0;
+  }
+  Buffer& operator=(Buffer&& o) noexcept {
+    if (this != &o) {
+      Release();
+      mem_ = o.mem_;
+      size_ = o.size_;
+      counter_ = o.counter_;
+      o.mem_ = nullptr;
+      o.size_ = 0;
+    }
+    return *this;
+  }
+  ~Buffer() { Release(); }
+
+  cl_mem mem() const { return mem_; }
+  size_t size() const { return size_; }
+  size_t bytes() const { return size_ * sizeof(T); }
+  bool empty() const { return size_ == 0; }
+
+ private:
+  friend class Context;
+  void Release() {
+    if (mem_) {
+      clReleaseMemObject(mem_);
+      if (counter_) *counter_ -= bytes();
+    }
+    mem_ = nullptr;
+    size_ = 0;
+  }
+  cl_mem mem_ = nullptr;
+  size_t size_ = 0;
+  // The owning context's allocation counter (the context outlives its buffers).
+  size_t* counter_ = nullptr;
+};
+
+class Context {
+ public:
+  // device_spec: "" (first GPU, else first CPU device), an index into ListDevices(), or a
+  // case-insensitive substring of the platform or device name.
+  static StatusOr<std::unique_ptr<Context>> Create(const std::string& device_spec);
+  ~Context();
+  Context(const Context&) = delete;
+  Context& operator=(const Context&) = delete;
+
+  const DeviceInfo& device() const { return device_; }
+  std::string Describe() const;
+
+  template <typename T>
+  StatusOr<Buffer<T>> Alloc(size_t n) {
+    Buffer<T> b;
+    if (n == 0) return b;
+    cl_int err = CL_SUCCESS;
+    b.mem_ = clCreateBuffer(context_, CL_MEM_READ_WRITE, n * sizeof(T), nullptr, &err);
+    if (err != CL_SUCCESS) return ClError(err, "clCreateBuffer", __FILE__, __LINE__);
+    b.size_ = n;
+    b.counter_ = &allocated_bytes_;
+    allocated_bytes_ += n * sizeof(T);
+    peak_bytes_ = std::max(peak_bytes_, allocated_bytes_);
+    return b;
+  }
+  // Grows the buffer to at least n elements (contents are not kept); no-op when big enough.
+  template <typename T>
+  Status Reserve(Buffer<T>* b, size_t n) {
+    if (b->size() >= n) return Status::Ok();
+    *b = Buffer<T>();
+    VD_ASSIGN_OR_RETURN(*b, Alloc<T>(n + n / 4));
+    return Status::Ok();
+  }
+  template <typename T>
+  Status Upload(Buffer<T>& b, const T* data, size_t n, size_t offset = 0) {
+    if (offset + n > b.size()) return OutOfRange("upload past the end of a device buffer");
+    if (n == 0) return Status::Ok();
+    VD_CL_CHECK(clEnqueueWriteBuffer(queue_, b.mem(), CL_TRUE, offset * sizeof(T), n * sizeof(T), data, 0, nullptr, nullptr));
+    return Status::Ok();
+  }
+  template <typename T>
+  Status Download(const Buffer<T>& b, T* data, size_t n, size_t offset = 0) {
+    if (offset + n > b.size()) return OutOfRange("download past the end of a device buffer");
+    if (n == 0) return Status::Ok();
+    VD_CL_CHECK(clEnqueueReadBuffer(queue_, b.mem(), CL_TRUE, offset * sizeof(T), n * sizeof(T), data, 0, nullptr, nullptr));
+    return Status::Ok();
+  }
+  template <typename T>
+  Status Fill(Buffer<T>& b, const T& value, size_t n) {
+    if (n > b.size()) return OutOfRange("fill past the end of a device buffer");
+    if (n == 0) return Status::Ok();
+    VD_CL_CHECK(clEnqueueFillBuffer(queue_, b.mem(), &value, sizeof(T), 0, n * sizeof(T), 0, nullptr, nullptr));
+    return Status::Ok();
+  }
+  template <typename T>
+  Status Copy(const Buffer<T>& src, Buffer<T>& dst, size_t n) {
+    if (n > src.size() || n > dst.size()) return OutOfRange("copy past the end of a device buffer");
+    if (n == 0) return Status::Ok();
+    VD_CL_CHECK(clEnqueueCopyBuffer(queue_, src.mem(), dst.mem(), 0, 0, n * sizeof(T), 0, nullptr, nullptr));
+    return Status::Ok();
+  }
+
+  // Runs kernel `name` over a 1-D range of `global` work items (no-op when 0).
+  template <typename... Args>
+  Status Run(const char* name, size_t global, const Args&... args) {
+    if (global == 0) return Status::Ok();
+    VD_ASSIGN_OR_RETURN(cl_kernel k, Kernel(name));
+    cl_uint index = 0;
+    Status s = Status::Ok();
+    (SetArg(k, index++, args, name, &s), ...);
+    VD_RETURN_IF_ERROR(s);
+    return Enqueue(k, name, global);
+  }
+  // Blocks until every queued command finished (for timing and before host reads).
+  Status Finish();
+
+  // Device memory held by live buffers now and at most, bytes.
+  size_t allocated_bytes() const { return allocated_bytes_; }
+  size_t peak_bytes() const { return peak_bytes_; }
+
+ private:
+  Context() = default;
+  Status Build();
+  StatusOr<cl_kernel> Kernel(const char* name);
+  Status Enqueue(cl_kernel k, const char* name, size_t global);
+
+  template <typename T>
+  static void SetArg(cl_kernel k, cl_uint i, const Buffer<T>& b, const char* name, Status* s) {
+    if (!s->ok()) return;
+    cl_mem m = b.mem();
+    cl_int err = clSetKernelArg(k, i, sizeof(cl_mem), &m);
+    if (err != CL_SUCCESS) *s = ClError(err, (std::string("clSetKernelArg ") + name + " #" + std::to_string(i)).c_str(), __FILE__, __LINE__);
+  }
+  template <typename T>
+  static void SetArg(cl_kernel k, cl_uint i, const T& v, const char* name, Status* s) {
+    static_assert(std::is_trivially_copyable_v<T>, "kernel arguments must be plain data");
+    if (!s->ok()) return;
+    cl_int err = clSetKernelArg(k, i, sizeof(T), &v);
+    if (err != CL_SUCCESS) *s = ClError(err, (std::string("clSetKernelArg ") + name + " #" + std::to_string(i)).c_str(), __FILE__, __LINE__);
+  }
+
+  DeviceInfo device_;
+  cl_context context_ = nullptr;
+  cl_command_queue queue_ = nullptr;
+  cl_program program_ = nullptr;
+  std::map<std::string, cl_kernel> kernels_;
+  std::mutex kernels_mutex_;
+  size_t allocated_bytes_ = 0;
+  size_t peak_bytes_ = 0;
+};
+
+// The program source: embedded kernels with their shared headers inlined, or the files under
+// $VD_KERNEL_DIR (kernels/*.cl and kernels/shared/*.h layout) when that variable is set.
+StatusOr<std::string> AssembleProgramSource();
+
+}  // namespace vd::ocl

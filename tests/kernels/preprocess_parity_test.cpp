@@ -1,0 +1,67 @@
+#include <gtest/gtest.h>
+
+#include "core/device_ops.h"
+#include "cpu_ref/cpu_ref.h"
+#include "test_scenes.h"
+
+namespace vd {
+namespace {
+
+TEST(PreprocessParityTest, ConvertBilateralPyramidVertexNormalMatchCpu) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const VdCamera cam = test::TestCamera(160, 120);
+  const int n = cam.width * cam.height;
+  const auto raw = test::SphereDepthRaw(cam, 1.0f, 0.25f, 1.6f);
+
+  std::vector<float> depth_cpu(n);
+  cpu::DepthConvert(raw.data(), depth_cpu.data(), n, 0.001f, 0.3f, 1.5f);
+  auto draw = test::ToDevice(ctx, raw);
+  auto ddepth = ctx->Alloc<float>(n);
+  ASSERT_TRUE(ops.DepthConvert(draw, *ddepth, n, 0.001f, 0.3f, 1.5f).ok());
+  const auto depth_ocl = test::FromDevice(ctx, *ddepth, n);
+  EXPECT_TRUE(test::AllClose(depth_ocl, depth_cpu, 0.f, 0.f));
+  // The wall at 1.6 m is clipped away; sphere pixels remain.
+  int valid = 0;
+  for (float d : depth_cpu) valid += d > 0.f;
+  EXPECT_GT(valid, 1000);
+  EXPECT_LT(valid, n / 2);
+
+  std::vector<float> bil_cpu(n);
+  cpu::Bilateral(depth_cpu.data(), bil_cpu.data(), cam.width, cam.height, 2, 3.f, 0.02f);
+  auto dbil = ctx->Alloc<float>(n);
+  ASSERT_TRUE(ops.Bilateral(*ddepth, *dbil, cam.width, cam.height, 2, 3.f, 0.02f).ok());
+  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, *dbil, n), bil_cpu, 1e-6f, 1e-5f));
+
+  std::vector<float> half_cpu(n / 4);
+  cpu::PyrDown(bil_cpu.data(), half_cpu.data(), cam.width, cam.height, 0.05f);
+  auto dhalf = ctx->Alloc<float>(n / 4);
+  ASSERT_TRUE(ops.PyrDown(*dbil, *dhalf, cam.width, cam.height, 0.05f).ok());
+  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, *dhalf, n / 4), half_cpu, 1e-6f, 1e-5f));
+
+  std::vector<vd_float4> v_cpu(n), n_cpu(n);
+  cpu::VertexMap(bil_cpu.data(), v_cpu.data(), cam);
+  cpu::NormalMap(v_cpu.data(), n_cpu.data(), cam.width, cam.height, 0.05f);
+  auto dv = ctx->Alloc<vd_float4>(n);
+  auto dn = ctx->Alloc<vd_float4>(n);
+  ASSERT_TRUE(ops.VertexMap(*dbil, *dv, cam).ok());
+  ASSERT_TRUE(ops.NormalMap(*dv, *dn, cam.width, cam.height, 0.05f).ok());
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, *dv, n)), test::Flatten(v_cpu), 1e-6f, 1e-5f));
+  // Normals difference nearby points, which amplifies the last-ulp differences of exp() in the
+  // bilateral filter; 1e-4 is still far below anything tracking notices.
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, *dn, n)), test::Flatten(n_cpu), 1e-4f, 1e-4f));
+
+  // Normals of the sphere point back to the camera and are unit length.
+  int normals = 0;
+  for (const auto& nv : n_cpu) {
+    if (nv.w == 0.f) continue;
+    ++normals;
+    EXPECT_NEAR(nv.x * nv.x + nv.y * nv.y + nv.z * nv.z, 1.f, 1e-4f);
+    EXPECT_LT(nv.z, 0.f);
+  }
+  EXPECT_GT(normals, valid / 2);
+}
+
+}  // namespace
+}  // namespace vd
