@@ -14,6 +14,8 @@ using Clock = std::chrono::steady_clock;
 namespace {
 // Waits are cut into slices of this length so a stop request is seen promptly.
 constexpr auto kWaitSlice = std::chrono::milliseconds(50);
+// How many frame periods the schedule may lag before it restarts from now.
+constexpr int kMaxLagPeriods = 3;
 }  // namespace
 
 Status PacingOptions::Validate() const {
@@ -86,8 +88,10 @@ Status FramePacer::Send(const vdeform::rgbd_frame_t& msg) {
   if (options_.fps > 0.0) {
     const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / options_.fps));
     const auto now = Clock::now();
-    // A source or server slower than the rate moves the schedule instead of causing a burst.
-    if (!scheduled_ || next_slot_ + period < now) next_slot_ = now;
+    // A frame that is a little late goes out at once and the schedule keeps its phase, so short
+    // stalls (a slow read, a busy CPU) do not lower the mean rate; falling further behind restarts
+    // the schedule instead of sending a burst.
+    if (!scheduled_ || now - next_slot_ > kMaxLagPeriods * period) next_slot_ = now;
     SleepUntil(next_slot_);
     next_slot_ += period;
     scheduled_ = true;

@@ -282,3 +282,30 @@ TEST(FramePacer, MalformedStatusMessagesAreCountedNotFatal) {
 
 }  // namespace
 }  // namespace vd
+
+namespace vd {
+namespace {
+
+TEST(FramePacer, ShortStallsKeepTheMeanRate) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  PacingOptions o;
+  o.fps = 50.0;
+  o.source_id = "test-source";
+  auto pacer = FramePacer::Create(&lcm, o);
+  ASSERT_TRUE(pacer.ok());
+  const auto t0 = Clock::now();
+  for (int64_t k = 0; k < 11; ++k) {
+    // Frames 1, 5 and 9 take the "source" 50 ms, 2.5 periods; 12.5 ms per frame on average.
+    if (k % 4 == 1) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    ASSERT_TRUE((*pacer)->Send(Frame(k)).ok());
+  }
+  // The schedule catches up after each stall: the last frame leaves 30 ms after its slot at
+  // 180 ms (restarting the schedule after each stall would take ~290 ms).
+  const double elapsed = SecondsSince(t0);
+  EXPECT_GE(elapsed, 0.195);
+  EXPECT_LT(elapsed, 0.26);
+}
+
+}  // namespace
+}  // namespace vd

@@ -1,0 +1,378 @@
+// vdeform-capture: reads RGB-D frames from a sensor, a recording, a data set folder or a synthetic
+// scene, compresses them and publishes vdeform::rgbd_frame_t on the LCM frame channel.
+#include <signal.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "vd/capture/pacing.h"
+#include "vd/capture/source.h"
+#include "vd/capture/synthetic.h"
+#include "vd/common/codecs.h"
+#include "vd/common/log.h"
+#include "vd/common/messages.h"
+
+namespace vd {
+namespace {
+
+constexpr const char* kUsage = R"(Usage: vdeform-capture [options]
+
+Reads RGB-D frames and publishes them as vdeform::rgbd_frame_t on the LCM channel VDEFORM_FRAMES,
+with sequence numbers from 0 and utime = capture time.
+
+Source:
+  --source SPEC          openni2[:URI]   live OpenNI2 sensor (first real device, or URI;
+                                         openni2:Dummy is OpenNI2's fake device)
+                         oni:FILE        OpenNI2 recording
+                         folder:DIR      data set folder: VolumeDeform, 7-Scenes/BundleFusion,
+                                         DeepDeform, TUM RGB-D or KillingFusion (detected)
+                         synthetic:NAME  synthetic scene (tube, cloth, rigid)
+                         default: synthetic:tube
+  --intrinsics FX,FY,CX,CY  override the source's intrinsics (pixels)
+  --depth-scale S        override the raw depth units per metre
+  --start N              first frame to send (finite sources), default 0
+  --count N              send at most N frames, default all
+  --stride N             send every N-th frame, default 1
+  --loop                 restart at --start after the last frame (endless)
+  --no-noise             synthetic scenes without Kinect-like depth noise
+  --read-timeout S       give up on a sensor/recording read after S seconds, default 2
+
+Rate:
+  --fps N                send at N frames per second, default: the source's own rate
+  --max-rate             send as fast as possible (no pacing)
+  --lockstep             send frame k+1 only after the server reported frame k processed
+                         (server_status_t on VDEFORM_STATUS naming our --source-id)
+  --lockstep-timeout S   seconds to wait for that report before re-sending, default 10
+  --lockstep-retries N   re-sends of an unacknowledged frame before giving up, default 3
+
+Encoding and transport:
+  --depth-codec C        rvl (default), png or raw
+  --color-codec C        jpeg (default), raw or none
+  --jpeg-quality Q       1..100, default 90
+  --source-id ID         default capture-<hostname>-<pid>
+  --lcm-url URL          default: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304
+
+Other:
+  --write DIR            with a synthetic source: write the scene as a VolumeDeform-layout folder
+                         (colour, depth, intrinsics.txt, ground-truth .gt.ply and .pose.txt) and
+                         exit without LCM; --count N spreads the scene's motion over N frames
+  --quiet                no progress line and no informational log (errors and the summary remain)
+  --help                 this text
+
+Exit status: 0 on success or after SIGINT/SIGTERM, 1 on a run-time error, 2 on bad arguments.
+)";
+
+std::atomic<bool> g_stop{false};
+
+void OnSignal(int) { g_stop.store(true); }
+
+struct Args {
+  std::string source = "synthetic:tube";
+  SourceOptions source_options;
+  // 0 with has_fps false: the source's own rate.
+  double fps = 0.0;
+  bool has_fps = false;
+  bool max_rate = false;
+  bool lockstep = false;
+  double lockstep_timeout_s = 10.0;
+  int lockstep_retries = 3;
+  FrameEncodeOptions encode;
+  std::string source_id;
+  std::string lcm_url;
+  std::string write_dir;
+  bool quiet = false;
+  bool help = false;
+  // Flags given, to reject combinations that would be silently ignored.
+  std::map<std::string, bool> given;
+};
+
+StatusOr<double> ParseDouble(const std::string& flag, const std::string& text) {
+  try {
+    size_t used = 0;
+    const double v = std::stod(text, &used);
+    if (used == text.size() && std::isfinite(v)) return v;
+  } catch (const std::exception&) {
+  }
+  return InvalidArgument(flag + ": '" + text + "' is not a number");
+}
+
+StatusOr<int64_t> ParseInt(const std::string& flag, const std::string& text) {
+  try {
+    size_t used = 0;
+    const long long v = std::stoll(text, &used);
+    if (used == text.size()) return static_cast<int64_t>(v);
+  } catch (const std::exception&) {
+  }
+  return InvalidArgument(flag + ": '" + text + "' is not an integer");
+}
+
+StatusOr<Args> ParseArgs(int argc, char** argv) {
+  Args a;
+  using Setter = std::function<Status(const std::string&)>;
+  auto real = [](double* out, const char* flag) -> Setter {
+    return [out, flag](const std::string& v) {
+      VD_ASSIGN_OR_RETURN(*out, ParseDouble(flag, v));
+      return Status::Ok();
+    };
+  };
+  auto integer = [](auto* out, const char* flag) -> Setter {
+    return [out, flag](const std::string& v) {
+      VD_ASSIGN_OR_RETURN(int64_t x, ParseInt(flag, v));
+      if (x < INT32_MIN || x > INT32_MAX) return InvalidArgument(std::string(flag) + ": " + v + " is out of range");
+      *out = static_cast<std::remove_pointer_t<decltype(out)>>(x);
+      return Status::Ok();
+    };
+  };
+  auto text = [](std::string* out) -> Setter {
+    return [out](const std::string& v) {
+      *out = v;
+      return Status::Ok();
+    };
+  };
+  double depth_scale = 0.0;
+  const std::map<std::string, Setter> with_value = {
+      {"--source", text(&a.source)},
+      {"--intrinsics", text(&a.source_options.intrinsics)},
+      {"--depth-scale", real(&depth_scale, "--depth-scale")},
+      {"--start", integer(&a.source_options.start, "--start")},
+      {"--count", integer(&a.source_options.count, "--count")},
+      {"--stride", integer(&a.source_options.stride, "--stride")},
+      {"--read-timeout", real(&a.source_options.read_timeout_s, "--read-timeout")},
+      {"--fps", real(&a.fps, "--fps")},
+      {"--lockstep-timeout", real(&a.lockstep_timeout_s, "--lockstep-timeout")},
+      {"--lockstep-retries", integer(&a.lockstep_retries, "--lockstep-retries")},
+      {"--depth-codec",
+       [&a](const std::string& v) {
+         VD_ASSIGN_OR_RETURN(a.encode.depth, ParseDepthEncoding(v));
+         return Status::Ok();
+       }},
+      {"--color-codec",
+       [&a](const std::string& v) {
+         VD_ASSIGN_OR_RETURN(a.encode.color, ParseColorEncoding(v));
+         return Status::Ok();
+       }},
+      {"--jpeg-quality", integer(&a.encode.jpeg_quality, "--jpeg-quality")},
+      {"--source-id", text(&a.source_id)},
+      {"--lcm-url", text(&a.lcm_url)},
+      {"--write", text(&a.write_dir)},
+  };
+  const std::map<std::string, bool*> switches = {
+      {"--max-rate", &a.max_rate}, {"--lockstep", &a.lockstep}, {"--loop", &a.source_options.loop},
+      {"--quiet", &a.quiet},       {"--help", &a.help},         {"-h", &a.help},
+  };
+  bool no_noise = false;
+  for (int i = 1; i < argc; ++i) {
+    std::string flag = argv[i];
+    std::optional<std::string> value;
+    const size_t eq = flag.find('=');
+    if (flag.rfind("--", 0) == 0 && eq != std::string::npos) {
+      value = flag.substr(eq + 1);
+      flag = flag.substr(0, eq);
+    }
+    if (flag == "--no-noise") {
+      no_noise = true;
+    } else if (auto s = switches.find(flag); s != switches.end()) {
+      if (value) return InvalidArgument(flag + " takes no value");
+      *s->second = true;
+    } else if (auto w = with_value.find(flag); w != with_value.end()) {
+      if (!value) {
+        if (i + 1 >= argc) return InvalidArgument(flag + " needs a value");
+        value = argv[++i];
+      }
+      VD_RETURN_IF_ERROR(w->second(*value));
+    } else {
+      return InvalidArgument("unknown argument '" + std::string(argv[i]) + "'");
+    }
+    a.given[flag] = true;
+  }
+  a.has_fps = a.given.count("--fps") > 0;
+  a.source_options.depth_scale = static_cast<float>(depth_scale);
+  a.source_options.synthetic_noise = !no_noise;
+  if (a.help) return a;
+  VD_RETURN_IF_ERROR(a.source_options.Validate());
+  VD_RETURN_IF_ERROR(a.encode.Validate());
+  if (a.has_fps && a.max_rate) return InvalidArgument("--fps and --max-rate exclude each other");
+  if (a.has_fps && !(a.fps > 0.0 && a.fps <= 10000.0))
+    return InvalidArgument("--fps " + std::to_string(a.fps) + " violates 0 < fps <= 10000");
+  if (!a.lockstep && (a.given.count("--lockstep-timeout") || a.given.count("--lockstep-retries")))
+    return InvalidArgument("--lockstep-timeout and --lockstep-retries need --lockstep");
+  if (!a.write_dir.empty()) {
+    if (a.source.rfind("synthetic:", 0) != 0)
+      return InvalidArgument("--write needs a synthetic source (--source synthetic:NAME), got '" + a.source + "'");
+    for (const char* f : {"--start", "--stride", "--loop", "--lockstep", "--intrinsics", "--depth-scale"})
+      if (a.given.count(f)) return InvalidArgument(std::string(f) + " does not apply to --write");
+  }
+  if (a.source_id.empty()) {
+    char host[256] = {0};
+    if (gethostname(host, sizeof(host) - 1) != 0) std::snprintf(host, sizeof(host), "unknown");
+    a.source_id = "capture-" + std::string(host) + "-" + std::to_string(getpid());
+  }
+  return a;
+}
+
+int WriteDataset(const Args& a) {
+  SyntheticOptions options;
+  options.noise = a.source_options.synthetic_noise;
+  if (a.source_options.count > 0) {
+    if (a.source_options.count > 1000000) {
+      std::fprintf(stderr, "vdeform-capture: error: --count %lld is too many frames to write\n",
+                   static_cast<long long>(a.source_options.count));
+      return 2;
+    }
+    options.num_frames = static_cast<int>(a.source_options.count);
+  }
+  const std::string name = a.source.substr(std::string("synthetic:").size());
+  auto scene = MakeSyntheticScene(name, options);
+  if (!scene.ok()) {
+    std::fprintf(stderr, "vdeform-capture: error: %s\n", scene.status().ToString().c_str());
+    return 1;
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  const Status s = WriteSyntheticDataset(**scene, a.write_dir, (*scene)->num_frames());
+  if (!s.ok()) {
+    std::fprintf(stderr, "vdeform-capture: error: writing %s: %s\n", a.write_dir.c_str(), s.ToString().c_str());
+    return 1;
+  }
+  std::fprintf(stderr, "vdeform-capture: wrote %d frames of %s to %s in %.2f s\n", (*scene)->num_frames(),
+               a.source.c_str(), a.write_dir.c_str(),
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  return 0;
+}
+
+int64_t NowMicros() {
+  return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+int Run(const Args& a) {
+  if (a.quiet) SetLogLevel(LogLevel::kWarning);
+  if (!a.write_dir.empty()) return WriteDataset(a);
+
+  auto source = OpenSource(a.source, a.source_options);
+  if (!source.ok()) {
+    std::fprintf(stderr, "vdeform-capture: error: %s\n", source.status().ToString().c_str());
+    return 1;
+  }
+  VD_LOG_INFO << "source: " << (*source)->Describe();
+
+  const std::string url = ResolveLcmUrl(a.lcm_url);
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    std::fprintf(stderr,
+                 "vdeform-capture: error: cannot initialise LCM at '%s' (on a loopback-only host multicast needs "
+                 "'ip route add 224.0.0.0/4 dev lo')\n",
+                 url.c_str());
+    return 1;
+  }
+  PacingOptions pacing;
+  pacing.fps = a.max_rate ? 0.0 : (a.has_fps ? a.fps : (*source)->NominalFps());
+  pacing.lockstep = a.lockstep;
+  pacing.lockstep_timeout_s = a.lockstep_timeout_s;
+  pacing.lockstep_retries = a.lockstep_retries;
+  pacing.source_id = a.source_id;
+  auto pacer = FramePacer::Create(&lcm, pacing, &g_stop);
+  if (!pacer.ok()) {
+    std::fprintf(stderr, "vdeform-capture: error: %s\n", pacer.status().ToString().c_str());
+    return 1;
+  }
+  VD_LOG_INFO << "publishing on " << kFrameChannel << " at " << url << " as '" << a.source_id << "', "
+              << (pacing.fps > 0 ? std::to_string(pacing.fps) + " fps" : std::string("max rate"))
+              << (pacing.lockstep ? ", lockstep" : "") << ", depth " << DepthEncodingName(a.encode.depth)
+              << ", colour " << ColorEncodingName(a.encode.color);
+
+  struct sigaction action = {};
+  action.sa_handler = OnSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+
+  const int64_t total = (*source)->NumFrames();
+  const bool progress = !a.quiet && isatty(STDERR_FILENO) && total > 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  auto last_progress = t0;
+  int64_t sent = 0;
+  int64_t bytes = 0;
+  int rc = 0;
+  while (!g_stop.load()) {
+    auto next = (*source)->Next();
+    if (!next.ok()) {
+      if (progress) std::fprintf(stderr, "\n");
+      std::fprintf(stderr, "vdeform-capture: error: frame %lld: %s\n", static_cast<long long>(sent),
+                   next.status().ToString().c_str());
+      rc = 1;
+      break;
+    }
+    if (!next->has_value()) break;
+    RgbdFrame& frame = **next;
+    frame.seq = sent;
+    frame.source_id = a.source_id;
+    frame.utime = NowMicros();
+    auto msg = FrameToMessage(frame, a.encode);
+    if (!msg.ok()) {
+      if (progress) std::fprintf(stderr, "\n");
+      std::fprintf(stderr, "vdeform-capture: error: encoding frame %lld: %s\n", static_cast<long long>(sent),
+                   msg.status().ToString().c_str());
+      rc = 1;
+      break;
+    }
+    const int64_t published_before = (*pacer)->stats().published;
+    const Status s = (*pacer)->Send(*msg);
+    if (!s.ok()) {
+      if (progress) std::fprintf(stderr, "\n");
+      std::fprintf(stderr, "vdeform-capture: error: %s\n", s.ToString().c_str());
+      rc = 1;
+      break;
+    }
+    // A stop request during the rate wait returns before publishing.
+    if ((*pacer)->stats().published == published_before) break;
+    ++sent;
+    bytes += msg->getEncodedSize();
+    const auto now = std::chrono::steady_clock::now();
+    if (progress && (now - last_progress > std::chrono::milliseconds(250) || sent == total)) {
+      last_progress = now;
+      const double elapsed = std::chrono::duration<double>(now - t0).count();
+      std::fprintf(stderr, "\rvdeform-capture: %lld/%lld frames  %.1f fps  %.1f KB/frame   ",
+                   static_cast<long long>(sent), static_cast<long long>(total), elapsed > 0 ? sent / elapsed : 0.0,
+                   bytes / 1024.0 / static_cast<double>(sent));
+      std::fflush(stderr);
+    }
+  }
+  if (progress) std::fprintf(stderr, "\n");
+  const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::fprintf(stderr,
+               "vdeform-capture: sent %lld frames (%lld re-sent) in %.2f s (%.1f fps), mean %.1f KB/frame%s\n",
+               static_cast<long long>(sent), static_cast<long long>((*pacer)->stats().resends), elapsed,
+               elapsed > 0 ? sent / elapsed : 0.0, sent > 0 ? bytes / 1024.0 / static_cast<double>(sent) : 0.0,
+               g_stop.load() ? ", stopped by signal" : "");
+  // Destroying the source stops a live sensor before we return.
+  source->reset();
+  return rc;
+}
+
+}  // namespace
+}  // namespace vd
+
+int main(int argc, char** argv) {
+  auto args = vd::ParseArgs(argc, argv);
+  if (!args.ok()) {
+    std::fprintf(stderr, "vdeform-capture: error: %s\nTry 'vdeform-capture --help'.\n",
+                 args.status().message().c_str());
+    return 2;
+  }
+  if (args->help) {
+    std::fputs(vd::kUsage, stdout);
+    return 0;
+  }
+  return vd::Run(*args);
+}
