@@ -466,7 +466,6 @@ StatusOr<std::unique_ptr<FrameSource>> OpenFolderSource(const std::string& dir_t
   }
   const float depth_scale = options.depth_scale > 0.f ? options.depth_scale : layout->depth_scale;
   auto source = std::make_unique<FolderSource>(dir_text, std::move(*layout), selection, intrinsics, depth_scale);
-  VD_LOG_INFO << source->Describe();
   return std::unique_ptr<FrameSource>(std::move(source));
 }
 

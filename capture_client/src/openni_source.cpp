@@ -236,7 +236,6 @@ class OpenNiSource : public FrameSource {
     started_ = true;
     if (has_color_ && color_.start() != openni::STATUS_OK)
       return Unavailable(name_ + ": cannot start the colour stream: " + ExtendedError());
-    VD_LOG_INFO << Describe();
     return Status::Ok();
   }
 
