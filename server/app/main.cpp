@@ -1,0 +1,88 @@
+// vdeform-server: the VolumeDeform reconstruction core as an LCM service, or offline over a data
+// set (--input).
+#include <cstdio>
+
+#include "ocl/ocl.h"
+#include "server_options.h"
+#include "vd/common/log.h"
+
+namespace vd {
+
+void ServerOptions::Register(FlagParser* f) {
+  f->AddString("input", &input,
+               "Offline mode: process SOURCE (openni2[:URI], oni:FILE, folder:DIR, synthetic:NAME) without LCM");
+  f->AddString("intrinsics", &intrinsics, "fx,fy,cx,cy overriding the source's intrinsics (offline mode)");
+  f->AddFloat("depth-scale", &depth_scale, "Raw depth units per metre overriding the source's (offline mode; 0 = source's)");
+  f->AddFloat("voxel-size", &voxel_size, "Grid spacing in metres");
+  f->AddFloat("min-depth", &min_depth, "Depth below this many metres is ignored");
+  f->AddFloat("max-depth", &max_depth, "Depth beyond this many metres is ignored");
+  f->AddInt("max-voxels", &max_voxels, "Largest grid (points) the automatic placement may allocate, 12 bytes each");
+  f->AddInt("count", &count, "Offline mode: process at most N frames (-1 = all)");
+  f->AddInt("start", &start, "Offline mode: first frame index");
+  f->AddInt("stride", &stride, "Offline mode: use every n-th frame");
+  f->AddString("save-dir", &save_dir,
+               "Offline mode: write frame-%06d.mesh.ply (live, camera coordinates), frame-%06d.canonical.ply and "
+               "frame-%06d.pose.txt (camera-to-world) per frame");
+  f->AddString("stats-json", &stats_json, "Offline mode: write per-stage timing statistics, fps and peak memory");
+  f->AddBool("rigid-only", &rigid_only,
+             "Rigid tracking and fusion only (the non-rigid solve of the core issue part 2 is not in this build: "
+             "every run is rigid)");
+  f->AddBool("no-bilateral", &no_bilateral, "Track on the unfiltered depth");
+  f->AddString("device", &device, "OpenCL device: index (see --list-devices) or name substring; default first GPU, else CPU");
+  f->AddBool("list-devices", &list_devices, "List the OpenCL devices and exit");
+  f->AddString("lcm-url", &lcm_url, "LCM URL (default: $LCM_DEFAULT_URL, else host-only multicast with a 4 MB receive buffer)");
+  f->AddString("snapshot-dir", &snapshot_dir, "Directory SAVE_SNAPSHOT commands write into (paths cannot leave it)");
+  f->AddBool("quiet", &quiet, "Only warnings and errors");
+}
+
+EngineParams ServerOptions::ToEngineParams() const {
+  EngineParams p;
+  p.voxel_size = float(voxel_size);
+  p.min_depth = float(min_depth);
+  p.max_depth = float(max_depth);
+  p.max_voxels = max_voxels;
+  p.bilateral = !no_bilateral;
+  return p;
+}
+
+SourceOptions ServerOptions::ToSourceOptions() const {
+  SourceOptions s;
+  s.intrinsics = intrinsics;
+  s.depth_scale = float(depth_scale);
+  s.start = start;
+  s.count = count;
+  s.stride = int(stride);
+  return s;
+}
+
+}  // namespace vd
+
+int main(int argc, char** argv) {
+  vd::ServerOptions options;
+  vd::FlagParser flags(
+      "vdeform-server: real-time non-rigid reconstruction (VolumeDeform) on OpenCL.\n"
+      "  vdeform-server [flags]                 run as an LCM service: frames in, meshes and status out\n"
+      "  vdeform-server --input SOURCE [flags]  run offline over a data set or synthetic scene");
+  options.Register(&flags);
+  bool help = false;
+  vd::Status s = flags.Parse(argc, argv, &help);
+  if (help) {
+    std::printf("%s", flags.Help().c_str());
+    return 0;
+  }
+  if (!s.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", s.message().c_str());
+    return 2;
+  }
+  if (options.quiet) vd::SetLogLevel(vd::LogLevel::kWarning);
+  if (options.list_devices) {
+    auto devices = vd::ocl::ListDevices();
+    if (!devices.ok()) {
+      std::fprintf(stderr, "vdeform-server: %s\n", devices.status().ToString().c_str());
+      return 1;
+    }
+    std::printf("%s", vd::ocl::DescribeDevices(*devices).c_str());
+    return 0;
+  }
+  return options.input.empty() ? vd::RunNode(options) : vd::RunOffline(options);
+}

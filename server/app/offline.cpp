@@ -1,0 +1,117 @@
+// Offline mode: the same engine over a data set or synthetic source, without LCM.
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include "server_options.h"
+#include "stats.h"
+#include "vd/common/codecs.h"
+#include "vd/common/log.h"
+
+namespace vd {
+namespace {
+
+std::atomic<bool> g_stop{false};
+void OnSignal(int) { g_stop = true; }
+
+Status WritePose(const std::string& path, const Eigen::Matrix4d& T) {
+  std::ofstream out(path);
+  if (!out) return Unavailable("cannot write '" + path + "'");
+  out.setf(std::ios::scientific);
+  out.precision(9);
+  for (int r = 0; r < 4; ++r) out << T(r, 0) << " " << T(r, 1) << " " << T(r, 2) << " " << T(r, 3) << "\n";
+  return out ? Status::Ok() : Unavailable("write failed for '" + path + "'");
+}
+
+std::string FramePath(const std::string& dir, int64_t index, const char* suffix) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "frame-%06lld.%s", static_cast<long long>(index), suffix);
+  return (std::filesystem::path(dir) / name).string();
+}
+
+}  // namespace
+
+int RunOffline(const ServerOptions& options) {
+  std::signal(SIGINT, OnSignal);
+  std::signal(SIGTERM, OnSignal);
+  auto fail = [](const Status& s) {
+    std::fprintf(stderr, "vdeform-server: %s\n", s.ToString().c_str());
+    return 1;
+  };
+  const SourceOptions source_options = options.ToSourceOptions();
+  if (Status s = source_options.Validate(); !s.ok()) return fail(s);
+  auto source = OpenSource(options.input, source_options);
+  if (!source.ok()) return fail(source.status());
+  VD_LOG_INFO << "input: " << (*source)->Describe();
+  if (!options.save_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(options.save_dir, ec);
+    if (ec) return fail(Unavailable("cannot create --save-dir '" + options.save_dir + "': " + ec.message()));
+  }
+  auto engine = Engine::Create(options.ToEngineParams(), options.device);
+  if (!engine.ok()) return fail(engine.status());
+  VD_LOG_INFO << "OpenCL device: " << (*engine)->DeviceDescription();
+
+  StageStats stats;
+  const int64_t total = (*source)->NumFrames();
+  const bool tty = isatty(fileno(stderr));
+  int64_t processed = 0, lost = 0;
+  const auto t_start = std::chrono::steady_clock::now();
+  while (!g_stop) {
+    auto next = (*source)->Next();
+    if (!next.ok()) return fail(next.status().WithContext("reading frame " + std::to_string(processed)));
+    if (!next->has_value()) break;
+    const RgbdFrame& frame = **next;
+    const auto t0 = std::chrono::steady_clock::now();
+    auto result = (*engine)->Process(frame);
+    if (!result.ok()) return fail(result.status().WithContext("frame " + std::to_string(frame.seq)));
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    stats.Add(result->times, ms);
+    if (!result->tracking_ok) {
+      ++lost;
+      VD_LOG_WARNING << "frame " << processed << ": " << result->tracking_message;
+    }
+    if (!options.save_dir.empty()) {
+      Status s = WritePly(FramePath(options.save_dir, processed, "mesh.ply"), result->live_mesh);
+      if (s.ok()) s = WritePly(FramePath(options.save_dir, processed, "canonical.ply"), result->canonical_mesh);
+      if (s.ok()) s = WritePose(FramePath(options.save_dir, processed, "pose.txt"), result->pose);
+      if (!s.ok()) return fail(s);
+    }
+    ++processed;
+    if (!options.quiet) {
+      char line[256];
+      std::snprintf(line, sizeof(line), "frame %lld%s%s  %.1f ms  %zu triangles  icp inliers %d%s",
+                    static_cast<long long>(processed), total > 0 ? "/" : "",
+                    total > 0 ? std::to_string(total).c_str() : "", ms, result->live_mesh.num_triangles(),
+                    result->icp_inliers, result->tracking_ok ? "" : "  LOST");
+      std::fprintf(stderr, tty ? "\r%s\033[K" : "%s\n", line);
+    }
+  }
+  if (!options.quiet && tty) std::fprintf(stderr, "\n");
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  const double fps = processed / std::max(secs, 1e-9);
+  std::printf("processed %lld frames in %.1f s (%.2f fps), tracking lost on %lld\n", static_cast<long long>(processed),
+              secs, fps, static_cast<long long>(lost));
+  std::printf("stages (mean ms): %s\n", stats.Summary().c_str());
+  std::printf("peak memory: %.1f MB resident, %.1f MB OpenCL buffers\n", PeakResidentBytes() / 1e6,
+              (*engine)->device_peak_bytes() / 1e6);
+  if (!options.stats_json.empty()) {
+    std::ofstream out(options.stats_json);
+    out << "{\"input\": \"" << options.input << "\", \"frames\": " << processed << ", \"tracking_lost\": " << lost
+        << ", \"seconds\": " << secs << ", \"fps\": " << fps << ", \"voxel_size\": " << options.voxel_size
+        << ", \"peak_resident_bytes\": " << PeakResidentBytes()
+        << ", \"peak_device_bytes\": " << (*engine)->device_peak_bytes() << ", \"device\": \""
+        << (*engine)->DeviceDescription() << "\", \"stages\": " << stats.Json() << "}\n";
+    if (!out) return fail(Unavailable("cannot write --stats-json '" + options.stats_json + "'"));
+    std::printf("wrote %s\n", options.stats_json.c_str());
+  }
+  if (!options.save_dir.empty()) std::printf("wrote %lld frames to %s\n", static_cast<long long>(processed), options.save_dir.c_str());
+  return g_stop ? 130 : 0;
+}
+
+}  // namespace vd

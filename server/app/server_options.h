@@ -1,0 +1,45 @@
+#pragma once
+// Options of vdeform-server shared by the offline mode and the LCM node.
+#include <string>
+
+#include "core/engine.h"
+#include "flags.h"
+#include "vd/capture/source.h"
+
+namespace vd {
+
+struct ServerOptions {
+  // Offline mode: a source spec as for vdeform-capture --source; empty = run the LCM node.
+  std::string input;
+  std::string intrinsics;
+  double depth_scale = 0;
+  double voxel_size = 0.004;
+  double min_depth = 0.2;
+  double max_depth = 3.5;
+  int64_t max_voxels = 48ll * 1000 * 1000;
+  int64_t count = -1;
+  int64_t start = 0;
+  int64_t stride = 1;
+  std::string save_dir;
+  std::string stats_json;
+  bool rigid_only = false;
+  bool no_bilateral = false;
+  // OpenCL device: index or name substring; empty = first GPU, else first CPU device.
+  std::string device;
+  bool list_devices = false;
+  // LCM node.
+  std::string lcm_url;
+  std::string snapshot_dir = "snapshots";
+  bool quiet = false;
+
+  void Register(FlagParser* flags);
+  EngineParams ToEngineParams() const;
+  SourceOptions ToSourceOptions() const;
+};
+
+// Offline mode: the engine over a data set or synthetic source, no LCM. Returns the exit code.
+int RunOffline(const ServerOptions& options);
+// The LCM node. Returns the exit code.
+int RunNode(const ServerOptions& options);
+
+}  // namespace vd
