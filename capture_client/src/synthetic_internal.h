@@ -14,11 +14,18 @@
 
 namespace vd::synthetic_internal {
 
+struct Texture {
+  // Selects the random pattern; parts with different seeds look different.
+  uint32_t seed = 0;
+  // Greys instead of saturated colours, so a floor stands apart from the objects on it.
+  bool muted = false;
+};
+
 // Colour, B G R in 0..255, of the material point whose rest position (metres) is p. A solid
 // texture: seamless on closed surfaces and a function of the material point only, so it moves
 // with the surface. Layers of several scales (cells 45 mm, 18 mm, 7 mm, grain 5 mm) give SIFT
 // blobs and corners from coarse to fine.
-Eigen::Vector3f SolidTexture(const Eigen::Vector3d& p, uint32_t texture_seed);
+Eigen::Vector3f SolidTexture(const Eigen::Vector3d& p, const Texture& texture);
 
 // Deterministic per-pixel random numbers: counter based, so the result does not depend on the
 // order or thread in which pixels are visited.
@@ -47,7 +54,7 @@ struct Chart {
   bool pole_v0 = false;
   bool pole_v1 = false;
   // Each chart may carry its own texture so neighbouring parts are told apart.
-  uint32_t texture_seed = 0;
+  Texture texture;
   std::function<Eigen::Vector3d(double u, double v)> rest;
 };
 
@@ -90,11 +97,11 @@ class ParametricScene : public SyntheticScene {
   Intrinsics intrinsics_;
   // Rest position of each material point (the texture's domain).
   std::vector<Eigen::Vector3d> rest_;
-  // Texture seed of each material point's chart.
-  std::vector<uint32_t> vertex_texture_;
+  // Texture of each material point's chart.
+  std::vector<Texture> vertex_texture_;
   std::vector<int32_t> triangles_;
-  // Chart texture seed of each triangle, for per-pixel texturing.
-  std::vector<uint32_t> triangle_texture_;
+  // Chart texture of each triangle, for per-pixel texturing.
+  std::vector<Texture> triangle_texture_;
   std::vector<uint8_t> colors_;
 };
 

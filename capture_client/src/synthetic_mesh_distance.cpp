@@ -118,13 +118,18 @@ inline float BoxDistance2(const Node& n, const Eigen::Vector3f& p) {
   return d.squaredNorm();
 }
 
+
+// A usable triangle in tree order, vertices interleaved so a leaf is a few cache lines.
+struct PackedTriangle {
+  Eigen::Vector3f a, b, c;
+  // Index in the input mesh.
+  int32_t id = -1;
+};
+
 }  // namespace
 
 struct MeshDistance::Impl {
-  // Vertices of each usable triangle, in tree order.
-  std::vector<Eigen::Vector3f> a, b, c;
-  // Original triangle index of each entry.
-  std::vector<int32_t> id;
+  std::vector<PackedTriangle> triangles;
   std::vector<Node> nodes;
 
   int32_t Build(std::vector<int32_t>& order, std::vector<Eigen::Vector3f>& centroids, int32_t first, int32_t count,
@@ -191,16 +196,10 @@ MeshDistance::MeshDistance(const TriangleMesh& mesh) {
     impl->nodes.reserve(size_t(2 * n / kLeafSize + 16));
     impl->Build(order, centroids, 0, n, lo, hi);
   }
-  impl->a.resize(size_t(n));
-  impl->b.resize(size_t(n));
-  impl->c.resize(size_t(n));
-  impl->id.resize(size_t(n));
-  for (int32_t i = 0; i < n; ++i) {
-    const int32_t src = order[size_t(i)];
-    impl->a[size_t(i)] = va[size_t(src)];
-    impl->b[size_t(i)] = vb[size_t(src)];
-    impl->c[size_t(i)] = vc[size_t(src)];
-    impl->id[size_t(i)] = usable[size_t(src)];
+  impl->triangles.resize(count);
+  for (size_t i = 0; i < count; ++i) {
+    const size_t src = size_t(order[i]);
+    impl->triangles[i] = PackedTriangle{va[src], vb[src], vc[src], usable[src]};
   }
   impl_ = std::move(impl);
 }
@@ -212,36 +211,43 @@ ClosestPoint MeshDistance::Closest(const Eigen::Vector3f& p) const {
   const Impl& m = *impl_;
   if (m.nodes.empty() || !p.allFinite()) return result;
   float best2 = std::numeric_limits<float>::infinity();
-  // Depth is at most ~2 log2(n / kLeafSize) + 2 for a median split; 128 covers any mesh that fits in memory.
-  int32_t stack[128];
+  // Node and its box distance. Depth is at most ~log2(n / kLeafSize) + 2 for a median split and
+  // each level leaves at most one entry behind, so 128 covers any mesh that fits in memory.
+  struct Entry {
+    int32_t node;
+    float d2;
+  };
+  Entry stack[128];
   int top = 0;
-  stack[top++] = 0;
+  stack[top++] = Entry{0, BoxDistance2(m.nodes[0], p)};
   while (top > 0) {
-    const Node& node = m.nodes[size_t(stack[--top])];
-    if (BoxDistance2(node, p) >= best2) continue;
+    const Entry entry = stack[--top];
+    if (entry.d2 >= best2) continue;
+    const Node& node = m.nodes[size_t(entry.node)];
     if (node.count > 0) {
       for (int32_t i = node.first; i < node.first + node.count; ++i) {
-        const TriangleHit hit = ClosestOnTriangle(p, m.a[size_t(i)], m.b[size_t(i)], m.c[size_t(i)]);
+        const PackedTriangle& tri = m.triangles[size_t(i)];
+        const TriangleHit hit = ClosestOnTriangle(p, tri.a, tri.b, tri.c);
         const float d2 = (hit.point - p).squaredNorm();
         if (d2 < best2) {
           best2 = d2;
           result.position = hit.point;
-          result.where = SurfacePoint{m.id[size_t(i)], hit.b0, hit.b1, hit.b2};
+          result.where = SurfacePoint{tri.id, hit.b0, hit.b1, hit.b2};
         }
       }
       continue;
     }
-    const int32_t left = static_cast<int32_t>(&node - m.nodes.data()) + 1;
+    const int32_t left = entry.node + 1;
     const int32_t right = node.right;
     const float dl = BoxDistance2(m.nodes[size_t(left)], p);
     const float dr = BoxDistance2(m.nodes[size_t(right)], p);
     // Nearer child on top of the stack, so it is searched first and tightens the bound.
     if (dl < dr) {
-      if (dr < best2) stack[top++] = right;
-      if (dl < best2) stack[top++] = left;
+      if (dr < best2) stack[top++] = Entry{right, dr};
+      if (dl < best2) stack[top++] = Entry{left, dl};
     } else {
-      if (dl < best2) stack[top++] = left;
-      if (dr < best2) stack[top++] = right;
+      if (dl < best2) stack[top++] = Entry{left, dl};
+      if (dr < best2) stack[top++] = Entry{right, dr};
     }
   }
   result.distance = std::sqrt(best2);

@@ -83,14 +83,14 @@ void ParametricScene::AddChart(const Chart& chart) {
       ++next;
     }
   }
-  vertex_texture_.resize(rest_.size(), chart.texture_seed);
+  vertex_texture_.resize(rest_.size(), chart.texture);
   auto vertex = [&](int i, int j) {
     const bool pole = (j == 0 && chart.pole_v0) || (j == nv - 1 && chart.pole_v1);
     return pole ? row_start[j] : row_start[j] + i;
   };
   auto add = [&](int32_t a, int32_t b, int32_t c) {
     triangles_.insert(triangles_.end(), {a, b, c});
-    triangle_texture_.push_back(chart.texture_seed);
+    triangle_texture_.push_back(chart.texture);
   };
   const int cells_u = chart.wrap_u ? nu : nu - 1;
   for (int j = 0; j + 1 < nv; ++j) {

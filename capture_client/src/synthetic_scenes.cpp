@@ -18,10 +18,10 @@ constexpr double kEdge = 0.002;
 // camera and up, so the motion shows both in depth and in the image.
 class TubeScene : public ParametricScene {
  public:
-  // Tube radius and the length of its cylindrical part (caps add one radius at each end): 60 cm
-  // by 18 cm, about 350 x 105 px at 0.9 m.
-  static constexpr double kRadius = 0.09;
-  static constexpr double kLength = 0.42;
+  // Tube radius and the length of its cylindrical part (caps add one radius at each end): 70 cm
+  // by 20 cm, about 410 x 115 px at 0.9 m.
+  static constexpr double kRadius = 0.10;
+  static constexpr double kLength = 0.50;
   static constexpr double kMaxBend = 55.0 * kDeg;
 
   explicit TubeScene(const SyntheticOptions& options) : ParametricScene("tube", options, false) {
@@ -32,7 +32,7 @@ class TubeScene : public ParametricScene {
     chart.nv = SamplesFor(2.0 * half_meridian, kEdge);
     chart.wrap_u = true;
     chart.pole_v0 = chart.pole_v1 = true;
-    chart.texture_seed = 11;
+    chart.texture.seed = 11;
     chart.rest = [half_meridian](double u, double v) {
       const double theta = 2.0 * M_PI * u;
       const double s = -half_meridian + 2.0 * half_meridian * v;
@@ -101,7 +101,7 @@ class ClothScene : public ParametricScene {
     Chart chart;
     chart.nu = SamplesFor(kWidth, kEdgeCloth);
     chart.nv = SamplesFor(kHeight, kEdgeCloth);
-    chart.texture_seed = 22;
+    chart.texture.seed = 22;
     // Material coordinates in the sheet's own plane; the visible side is +z of that frame.
     chart.rest = [](double u, double v) {
       return Eigen::Vector3d(-0.5 * kWidth + kWidth * u, -0.5 * kHeight + kHeight * v, 0.0);
@@ -143,17 +143,18 @@ class ClothScene : public ParametricScene {
   Eigen::Vector3d axis_x_, axis_y_, normal_, origin_;
 };
 
-// A rigid arrangement on a 60 x 44 cm textured floor: a box, a sphere resting on the floor and a
+// A rigid arrangement on a 70 x 50 cm textured grey floor: a box, a sphere resting on the floor and a
 // capped upright cylinder. The camera orbits 12 degrees about the floor's vertical axis through
 // the scene centre and rises 3 cm, both with a cosine profile (about 13 cm of travel).
 class RigidScene : public ParametricScene {
  public:
   explicit RigidScene(const SyntheticOptions& options) : ParametricScene("rigid", options, true) {
     // Object frame: x right, z up from the floor, floor at z = 0.
-    AddPlane(Eigen::Vector3d(-0.30, -0.22, 0.0), Eigen::Vector3d(0.60, 0.0, 0.0), Eigen::Vector3d(0.0, 0.44, 0.0), 101);
-    AddBox(Eigen::Vector2d(-0.09, 0.03), 20.0 * kDeg, Eigen::Vector3d(0.16, 0.12, 0.10), 202);
-    AddSphere(Eigen::Vector3d(0.12, -0.06, 0.065), 0.065, 303);
-    AddCylinder(Eigen::Vector2d(0.10, 0.12), 0.04, 0.12, 404);
+    AddPlane(Eigen::Vector3d(-0.35, -0.25, 0.0), Eigen::Vector3d(0.70, 0.0, 0.0), Eigen::Vector3d(0.0, 0.50, 0.0),
+             Texture{101, true});
+    AddBox(Eigen::Vector2d(-0.10, 0.03), 20.0 * kDeg, Eigen::Vector3d(0.16, 0.12, 0.10), 202);
+    AddSphere(Eigen::Vector3d(0.12, -0.07, 0.065), 0.065, Texture{303, false});
+    AddCylinder(Eigen::Vector2d(0.11, 0.13), 0.04, 0.12, Texture{404, false});
     FinishCharts();
     // The floor's up direction leans 50 degrees towards the camera, so the camera looks down at
     // about 40 degrees from the floor normal.
@@ -164,7 +165,7 @@ class RigidScene : public ParametricScene {
     r.col(0) = x;
     r.col(1) = up_.cross(x);
     r.col(2) = up_;
-    centre_ = Eigen::Vector3d(0.0, 0.05, 0.95);
+    centre_ = Eigen::Vector3d(0.0, -0.02, 0.92);
     const Eigen::Isometry3d world_from_object = Eigen::Translation3d(centre_) * Eigen::Isometry3d(r);
     world_.resize(rest().size());
     for (size_t i = 0; i < rest().size(); ++i) world_[i] = world_from_object * rest()[i];
@@ -184,11 +185,11 @@ class RigidScene : public ParametricScene {
 
  private:
   // A rectangle corner + u e1 + v e2 with e1 x e2 the outward normal.
-  void AddPlane(const Eigen::Vector3d& corner, const Eigen::Vector3d& e1, const Eigen::Vector3d& e2, uint32_t seed) {
+  void AddPlane(const Eigen::Vector3d& corner, const Eigen::Vector3d& e1, const Eigen::Vector3d& e2, const Texture& texture) {
     Chart chart;
     chart.nu = SamplesFor(e1.norm(), kEdge);
     chart.nv = SamplesFor(e2.norm(), kEdge);
-    chart.texture_seed = seed;
+    chart.texture = texture;
     chart.rest = [corner, e1, e2](double u, double v) { return Eigen::Vector3d(corner + u * e1 + v * e2); };
     AddChart(chart);
   }
@@ -199,7 +200,7 @@ class RigidScene : public ParametricScene {
     const Eigen::Vector3d c(centre.x(), centre.y(), 0.0);
     const double hx = 0.5 * size.x(), hy = 0.5 * size.y(), hz = size.z();
     auto face = [&](const Eigen::Vector3d& corner, const Eigen::Vector3d& e1, const Eigen::Vector3d& e2, uint32_t s) {
-      AddPlane(c + r * corner, r * e1, r * e2, s);
+      AddPlane(c + r * corner, r * e1, r * e2, Texture{s, false});
     };
     face({-hx, -hy, hz}, {2 * hx, 0, 0}, {0, 2 * hy, 0}, seed);
     face({hx, -hy, 0}, {0, 2 * hy, 0}, {0, 0, hz}, seed + 1);
@@ -208,13 +209,13 @@ class RigidScene : public ParametricScene {
     face({-hx, -hy, 0}, {2 * hx, 0, 0}, {0, 0, hz}, seed + 4);
   }
 
-  void AddSphere(const Eigen::Vector3d& centre, double radius, uint32_t seed) {
+  void AddSphere(const Eigen::Vector3d& centre, double radius, const Texture& texture) {
     Chart chart;
     chart.nu = static_cast<int>(std::ceil(2.0 * M_PI * radius / kEdge));
     chart.nv = SamplesFor(M_PI * radius, kEdge);
     chart.wrap_u = true;
     chart.pole_v0 = chart.pole_v1 = true;
-    chart.texture_seed = seed;
+    chart.texture = texture;
     // u = longitude, v = polar angle from the bottom pole: d/du x d/dv points outwards.
     chart.rest = [centre, radius](double u, double v) {
       const double theta = 2.0 * M_PI * u, phi = M_PI * v;
@@ -225,13 +226,13 @@ class RigidScene : public ParametricScene {
   }
 
   // An upright cylinder standing on the floor with a flat top; its bottom is hidden.
-  void AddCylinder(const Eigen::Vector2d& centre, double radius, double height, uint32_t seed) {
+  void AddCylinder(const Eigen::Vector2d& centre, double radius, double height, const Texture& texture) {
     const int around = static_cast<int>(std::ceil(2.0 * M_PI * radius / kEdge));
     Chart side;
     side.nu = around;
     side.nv = SamplesFor(height, kEdge);
     side.wrap_u = true;
-    side.texture_seed = seed;
+    side.texture = texture;
     side.rest = [centre, radius, height](double u, double v) {
       const double theta = 2.0 * M_PI * u;
       return Eigen::Vector3d(centre.x() + radius * std::cos(theta), centre.y() + radius * std::sin(theta), v * height);
@@ -242,7 +243,7 @@ class RigidScene : public ParametricScene {
     top.nv = SamplesFor(radius, kEdge);
     top.wrap_u = true;
     top.pole_v1 = true;
-    top.texture_seed = seed + 1;
+    top.texture = Texture{texture.seed + 1, texture.muted};
     // From the rim (v = 0) to the centre (v = 1): d/du x d/dv points up.
     top.rest = [centre, radius, height](double u, double v) {
       const double theta = 2.0 * M_PI * u, rho = radius * (1.0 - v);

@@ -27,7 +27,7 @@ inline double Unit(uint32_t h) { return (h >> 8) * (1.0 / 16777216.0); }
 // Saturated colours spread over the whole luminance range, so the grey image SIFT sees keeps
 // strong contrast between neighbouring patches.
 constexpr int kPaletteSize = 9;
-const float kPalette[kPaletteSize][3] = {
+const float kColourful[kPaletteSize][3] = {
     {20, 20, 25},    // black
     {240, 240, 235}, // white
     {30, 40, 210},   // red
@@ -38,21 +38,26 @@ const float kPalette[kPaletteSize][3] = {
     {150, 40, 120},  // purple
     {220, 200, 70},  // cyan
 };
+// Warm greys from near black to near white.
+const float kMuted[kPaletteSize][3] = {
+    {28, 30, 34}, {58, 62, 68}, {88, 94, 102}, {118, 126, 134}, {148, 156, 165},
+    {176, 184, 192}, {202, 210, 216}, {226, 232, 236}, {244, 248, 250},
+};
 
 inline float Luminance(const Eigen::Vector3f& bgr) { return 0.114f * bgr[0] + 0.587f * bgr[1] + 0.299f * bgr[2]; }
 
-inline Eigen::Vector3f PaletteColor(uint32_t index) {
-  const float* c = kPalette[index % kPaletteSize];
+inline Eigen::Vector3f PaletteColor(uint32_t index, bool muted) {
+  const float* c = (muted ? kMuted : kColourful)[index % kPaletteSize];
   return Eigen::Vector3f(c[0], c[1], c[2]);
 }
 
 // Chooses a palette colour from the hash whose luminance differs from `under` by at least 70.
-Eigen::Vector3f ContrastingColor(uint32_t h, const Eigen::Vector3f& under) {
+Eigen::Vector3f ContrastingColor(uint32_t h, const Eigen::Vector3f& under, bool muted) {
   for (uint32_t attempt = 0; attempt < kPaletteSize; ++attempt) {
-    const Eigen::Vector3f c = PaletteColor(h + attempt);
+    const Eigen::Vector3f c = PaletteColor(h + attempt, muted);
     if (std::fabs(Luminance(c) - Luminance(under)) >= 70.f) return c;
   }
-  return Luminance(under) > 128.f ? PaletteColor(0) : PaletteColor(1);
+  return Luminance(under) > 128.f ? PaletteColor(0, muted) : PaletteColor(kPaletteSize - 1, muted);
 }
 
 // One dot per occupied cell: a sphere kept inside its cell, so only the cell containing q matters.
@@ -91,27 +96,28 @@ double ValueNoise(const Eigen::Vector3d& q, double cell, uint32_t layer) {
 
 }  // namespace
 
-Eigen::Vector3f SolidTexture(const Eigen::Vector3d& p, uint32_t texture_seed) {
+Eigen::Vector3f SolidTexture(const Eigen::Vector3d& p, const Texture& texture) {
   // A generic rotation and a seed-dependent offset keep planar charts from slicing the cell
   // lattice along its own planes (which would miss every dot).
   static const Eigen::Matrix3d kTilt =
       (Eigen::AngleAxisd(0.61, Eigen::Vector3d(0.3, 0.8, 0.52).normalized()) *
        Eigen::AngleAxisd(0.37, Eigen::Vector3d::UnitZ()))
           .toRotationMatrix();
-  const uint32_t s = Mix32(texture_seed * 0x27d4eb2du + 0x165667b1u);
+  const uint32_t s = Mix32(texture.seed * 0x27d4eb2du + 0x165667b1u);
+  const bool muted = texture.muted;
   const Eigen::Vector3d offset(Unit(Mix32(s + 11)), Unit(Mix32(s + 12)), Unit(Mix32(s + 13)));
   const Eigen::Vector3d q = kTilt * p + offset;
 
   const double base_cell = 0.045;
   const Eigen::Vector3i bc(static_cast<int>(std::floor(q[0] / base_cell)), static_cast<int>(std::floor(q[1] / base_cell)),
                            static_cast<int>(std::floor(q[2] / base_cell)));
-  Eigen::Vector3f color = PaletteColor(CellHash(bc[0], bc[1], bc[2], s ^ 0x1u));
+  Eigen::Vector3f color = PaletteColor(CellHash(bc[0], bc[1], bc[2], s ^ 0x1u), muted);
 
   uint32_t h = 0;
   double a = DotCoverage(q, 0.018, s ^ 0x2u, 0.75, &h);
-  if (a > 0.0) color += float(a) * (ContrastingColor(Mix32(h + 9), color) - color);
+  if (a > 0.0) color += float(a) * (ContrastingColor(Mix32(h + 9), color, muted) - color);
   a = DotCoverage(q, 0.007, s ^ 0x3u, 0.6, &h);
-  if (a > 0.0) color += float(a) * (ContrastingColor(Mix32(h + 9), color) - color);
+  if (a > 0.0) color += float(a) * (ContrastingColor(Mix32(h + 9), color, muted) - color);
 
   const float grain = float(18.0 * ValueNoise(q, 0.005, s ^ 0x4u));
   for (int c = 0; c < 3; ++c) color[c] = std::clamp(color[c] + grain, 0.f, 255.f);

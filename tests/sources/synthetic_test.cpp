@@ -290,10 +290,10 @@ TEST(SyntheticTest, TubeBendsUpAndBack) {
     cov += d * d.transpose();
   }
   const Eigen::Vector3d axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(2);
-  // Rings in the end caps (beyond the 21 cm half-length of the cylinder) move rigidly with the
+  // Rings in the end caps (beyond the 25 cm half-length of the cylinder) move rigidly with the
   // end sections, so the line through two ring centres is the end tangent.
   std::vector<size_t> ring[4];
-  const double bands[4][2] = {{-0.245, -0.235}, {-0.225, -0.215}, {0.215, 0.225}, {0.235, 0.245}};
+  const double bands[4][2] = {{-0.295, -0.285}, {-0.275, -0.265}, {0.265, 0.275}, {0.285, 0.295}};
   for (size_t v = 0; v < rest.num_vertices(); ++v) {
     const double s = (Vertex(rest, v).cast<double>() - centre).dot(axis);
     for (int r = 0; r < 4; ++r)
