@@ -63,7 +63,8 @@ int64_t MatchNumbered(const std::string& name, const std::string& prefix, const 
   if (name.compare(0, prefix.size(), prefix) != 0) return -1;
   if (name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0) return -1;
   const std::string digits = name.substr(prefix.size(), name.size() - prefix.size() - suffix.size());
-  if (digits.size() > 12) return -1;
+  // Exactly what %06d prints, so the index maps back to this very name.
+  if (digits.size() < 6 || digits.size() > 12 || (digits.size() > 6 && digits[0] == '0')) return -1;
   for (char c : digits)
     if (!std::isdigit(static_cast<unsigned char>(c))) return -1;
   return std::stoll(digits);
@@ -129,7 +130,8 @@ StatusOr<std::optional<std::pair<Intrinsics, std::string>>> FindIntrinsicsFile(
     const fs::path& dir, const std::vector<std::string>& candidates) {
   for (const std::string& c : candidates) {
     const fs::path p = dir / c;
-    if (!fs::is_regular_file(p)) continue;
+    std::error_code ec;
+    if (!fs::is_regular_file(p, ec)) continue;
     auto k = LoadIntrinsicsFile(p.string());
     if (!k.ok()) return k.status();
     return std::optional<std::pair<Intrinsics, std::string>>(std::make_pair(*k, p.string()));
@@ -167,13 +169,14 @@ StatusOr<std::optional<FolderLayout>> DetectFramePrefixed(const fs::path& dir, c
 
 // DeepDeform: color/%06d.jpg, depth/%06d.png, intrinsics.txt, optional mask/%06d.png.
 StatusOr<std::optional<FolderLayout>> DetectDeepDeform(const fs::path& dir) {
-  if (!fs::is_directory(dir / "depth") || !fs::is_directory(dir / "color")) return std::optional<FolderLayout>();
+  std::error_code ec;
+  if (!fs::is_directory(dir / "depth", ec) || !fs::is_directory(dir / "color", ec)) return std::optional<FolderLayout>();
   VD_ASSIGN_OR_RETURN(auto depth_names, ListFiles(dir / "depth"));
   const std::vector<int64_t> indices = Indices(depth_names, "", ".png");
   if (indices.empty()) return std::optional<FolderLayout>();
   VD_ASSIGN_OR_RETURN(auto color_names, ListFiles(dir / "color"));
   std::set<std::string> mask_names;
-  if (fs::is_directory(dir / "mask")) {
+  if (fs::is_directory(dir / "mask", ec)) {
     VD_ASSIGN_OR_RETURN(mask_names, ListFiles(dir / "mask"));
   }
   FolderLayout layout;
@@ -316,9 +319,12 @@ StatusOr<std::optional<FolderLayout>> DetectTum(const fs::path& dir, const std::
     const double span = layout.frames.back().time_s - layout.frames.front().time_s;
     if (span > 0.0) layout.fps = static_cast<double>(layout.frames.size() - 1) / span;
   }
-  const std::string folder_name = fs::absolute(dir).lexically_normal().filename().string().empty()
-                                      ? fs::absolute(dir).lexically_normal().parent_path().filename().string()
-                                      : fs::absolute(dir).lexically_normal().filename().string();
+  std::error_code ec;
+  fs::path normal = fs::absolute(dir, ec).lexically_normal();
+  if (ec) normal = dir.lexically_normal();
+  // "a/b/" has an empty file name; its folder name is "b".
+  const std::string folder_name =
+      normal.filename().empty() ? normal.parent_path().filename().string() : normal.filename().string();
   layout.intrinsics = TumDefaultIntrinsics(folder_name);
   layout.intrinsics_origin = layout.intrinsics
                                  ? "TUM default for '" + folder_name + "'"
@@ -335,7 +341,8 @@ StatusOr<cv::Mat> ReadImage(const std::string& path, int flags, const char* what
     return DataLoss(std::string("cannot read ") + what + " image '" + path + "': " + e.what());
   }
   if (image.empty()) {
-    if (!fs::exists(path)) return NotFound(std::string(what) + " image '" + path + "' does not exist");
+    std::error_code ec;
+    if (!fs::exists(path, ec)) return NotFound(std::string(what) + " image '" + path + "' does not exist");
     return DataLoss(std::string("cannot decode ") + what + " image '" + path + "' (corrupt or not an image)");
   }
   return image;
@@ -361,6 +368,26 @@ class FolderSource : public FrameSource {
         depth_scale_(depth_scale) {}
 
   StatusOr<std::optional<RgbdFrame>> Next() override {
+    try {
+      return NextFrame();
+    } catch (const std::exception& e) {
+      return Internal("folder:" + dir_ + ": " + e.what());
+    }
+  }
+
+  double NominalFps() const override { return layout_.fps; }
+  int64_t NumFrames() const override { return selection_.NumFrames(); }
+
+  std::string Describe() const override {
+    std::ostringstream os;
+    os << "folder:" << dir_ << " layout=" << layout_.name << " frames=" << selection_.per_pass() << "/"
+       << layout_.frames.size() << (selection_.NumFrames() < 0 ? " (looping)" : "") << " " << intrinsics_.ToString()
+       << " (" << layout_.intrinsics_origin << ") depth_scale=" << depth_scale_ << " fps=" << layout_.fps;
+    return os.str();
+  }
+
+ private:
+  StatusOr<std::optional<RgbdFrame>> NextFrame() {
     const std::optional<int64_t> raw = selection_.Advance();
     if (!raw) return std::optional<RgbdFrame>();
     const FolderFrame& f = layout_.frames[static_cast<size_t>(*raw)];
@@ -400,18 +427,6 @@ class FolderSource : public FrameSource {
     return std::optional<RgbdFrame>(std::move(frame));
   }
 
-  double NominalFps() const override { return layout_.fps; }
-  int64_t NumFrames() const override { return selection_.NumFrames(); }
-
-  std::string Describe() const override {
-    std::ostringstream os;
-    os << "folder:" << dir_ << " layout=" << layout_.name << " frames=" << selection_.per_pass() << "/"
-       << layout_.frames.size() << (selection_.NumFrames() < 0 ? " (looping)" : "") << " " << intrinsics_.ToString()
-       << " (" << layout_.intrinsics_origin << ") depth_scale=" << depth_scale_ << " fps=" << layout_.fps;
-    return os.str();
-  }
-
- private:
   std::string dir_;
   FolderLayout layout_;
   FrameSelection selection_;
@@ -421,9 +436,7 @@ class FolderSource : public FrameSource {
   bool warned_resize_ = false;
 };
 
-}  // namespace
-
-StatusOr<std::unique_ptr<FrameSource>> OpenFolderSource(const std::string& dir_text, const SourceOptions& options) {
+StatusOr<std::unique_ptr<FrameSource>> OpenFolder(const std::string& dir_text, const SourceOptions& options) {
   VD_RETURN_IF_ERROR(options.Validate());
   const fs::path dir(dir_text);
   std::error_code ec;
@@ -467,6 +480,16 @@ StatusOr<std::unique_ptr<FrameSource>> OpenFolderSource(const std::string& dir_t
   const float depth_scale = options.depth_scale > 0.f ? options.depth_scale : layout->depth_scale;
   auto source = std::make_unique<FolderSource>(dir_text, std::move(*layout), selection, intrinsics, depth_scale);
   return std::unique_ptr<FrameSource>(std::move(source));
+}
+
+}  // namespace
+
+StatusOr<std::unique_ptr<FrameSource>> OpenFolderSource(const std::string& dir_text, const SourceOptions& options) {
+  try {
+    return OpenFolder(dir_text, options);
+  } catch (const std::exception& e) {
+    return Internal("folder:" + dir_text + ": " + e.what());
+  }
 }
 
 }  // namespace vd

@@ -240,6 +240,31 @@ class OpenNiSource : public FrameSource {
   }
 
   StatusOr<std::optional<RgbdFrame>> Next() override {
+    try {
+      return NextFrame();
+    } catch (const std::exception& e) {
+      return Internal(name_ + ": " + e.what());
+    }
+  }
+
+  double NominalFps() const override { return fps_; }
+  int64_t NumFrames() const override {
+    if (!selection_) return -1;
+    return is_file_ ? selection_->NumFrames() : live_count_;
+  }
+
+  std::string Describe() const override {
+    std::ostringstream os;
+    os << name_ << " depth " << ModeString(depth_.getVideoMode());
+    if (has_color_) os << ", colour " << ModeString(color_.getVideoMode());
+    os << (registered_ ? ", registered to colour" : ", not registered") << ", " << intrinsics_.ToString() << " ("
+       << intrinsics_origin_ << ") depth_scale=" << depth_scale_;
+    if (is_file_ && selection_) os << " frames=" << selection_->per_pass() << "/" << raw_frames_;
+    return os.str();
+  }
+
+ private:
+  StatusOr<std::optional<RgbdFrame>> NextFrame() {
     const std::optional<int64_t> raw = selection_->Advance();
     if (!raw) return std::optional<RgbdFrame>();
     if (is_file_ && *raw < next_raw_) {
@@ -276,23 +301,6 @@ class OpenNiSource : public FrameSource {
     return std::optional<RgbdFrame>(std::move(frame));
   }
 
-  double NominalFps() const override { return fps_; }
-  int64_t NumFrames() const override {
-    if (!selection_) return -1;
-    return is_file_ ? selection_->NumFrames() : live_count_;
-  }
-
-  std::string Describe() const override {
-    std::ostringstream os;
-    os << name_ << " depth " << ModeString(depth_.getVideoMode());
-    if (has_color_) os << ", colour " << ModeString(color_.getVideoMode());
-    os << (registered_ ? ", registered to colour" : ", not registered") << ", " << intrinsics_.ToString() << " ("
-       << intrinsics_origin_ << ") depth_scale=" << depth_scale_;
-    if (is_file_ && selection_) os << " frames=" << selection_->per_pass() << "/" << raw_frames_;
-    return os.str();
-  }
-
- private:
   Status ChooseMode(openni::VideoStream& stream, openni::SensorType type, bool depth) {
     const std::optional<openni::VideoMode> mode = PickMode(device_.getSensorInfo(type), depth);
     if (!mode) return Status::Ok();

@@ -16,7 +16,12 @@ class SyntheticSource : public FrameSource {
   StatusOr<std::optional<RgbdFrame>> Next() override {
     const std::optional<int64_t> raw = selection_.Advance();
     if (!raw) return std::optional<RgbdFrame>();
-    RgbdFrame frame = scene_->Render(static_cast<int>(*raw));
+    RgbdFrame frame;
+    try {
+      frame = scene_->Render(static_cast<int>(*raw));
+    } catch (const std::exception& e) {
+      return Internal("synthetic:" + scene_->name() + ": rendering frame " + std::to_string(*raw) + ": " + e.what());
+    }
     frame.seq = selection_.delivered() - 1;
     // Monotonic across passes of a looping source.
     const double t = (static_cast<double>(*raw) + selection_.pass() * scene_->num_frames()) / scene_->fps();

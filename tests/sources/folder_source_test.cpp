@@ -362,6 +362,9 @@ TEST(FolderSource, UnknownLayoutSaysWhatWasLookedFor) {
   TempDir dir;
   WriteText(dir / "notes.txt", "nothing here");
   cv::imwrite(dir / "image0.png", FixtureDepth(8, 8, 1));
+  // Not %06d numbering: "frame-1" would map back to "frame-000001", a file that does not exist.
+  cv::imwrite(dir / "frame-1.depth.png", FixtureDepth(8, 8, 1));
+  cv::imwrite(dir / "frame-1.color.png", FixtureColor(8, 8, 1));
   auto s = OpenSource("folder:" + dir.path().string(), {});
   ASSERT_FALSE(s.ok());
   const std::string& m = s.status().message();
