@@ -1,0 +1,180 @@
+// vdeform-viewer: subscribes to the server's meshes and status, shows them in a window or as a
+// terminal status line, and saves PLY files and PNG renderings. See --help.
+#include <sys/ioctl.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cstdio>
+#include <iostream>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <lcm/lcm-cpp.hpp>
+
+#include "vd/common/log.h"
+#include "vd/common/messages.h"
+#include "vd/viewer/display.h"
+#include "vd/viewer/receiver.h"
+#include "vd/viewer/status_text.h"
+#include "vd/viewer/viewer_options.h"
+#include "window.h"
+
+namespace {
+
+std::atomic<bool> g_stop{false};
+
+void OnSignal(int) { g_stop.store(true); }
+
+void InstallSignalHandlers() {
+  struct sigaction action {};
+  action.sa_handler = OnSignal;
+  sigemptyset(&action.sa_mask);
+  sigaction(SIGINT, &action, nullptr);
+  sigaction(SIGTERM, &action, nullptr);
+}
+
+// Columns of the terminal on stdout (80 when unknown), so the \r-refreshed line never wraps.
+size_t TerminalColumns() {
+  winsize size{};
+  if (ioctl(STDOUT_FILENO, TIOCGWINSZ, &size) == 0 && size.ws_col > 0) return size.ws_col;
+  return 80;
+}
+
+// The status line: refreshed in place four times a second on a terminal, one line a second
+// otherwise (logs, pipes).
+class StatusPrinter {
+ public:
+  explicit StatusPrinter(bool enabled) : enabled_(enabled), tty_(isatty(STDOUT_FILENO) != 0) {}
+  void Tick(const vd::MeshReceiver& receiver) {
+    if (!enabled_) return;
+    const auto now = std::chrono::steady_clock::now();
+    const auto period = tty_ ? std::chrono::milliseconds(250) : std::chrono::milliseconds(1000);
+    if (now - last_ < period) return;
+    last_ = now;
+    std::string line = vd::StatusLine(receiver.stats(), receiver.last_status());
+    if (tty_) {
+      const size_t columns = TerminalColumns();
+      if (line.size() >= columns) line.resize(columns - 1);
+      std::printf("\r%s\033[K", line.c_str());
+      printed_on_line_ = true;
+    } else {
+      std::printf("%s\n", line.c_str());
+    }
+    std::fflush(stdout);
+  }
+  // Ends the in-place line so what follows starts on a fresh one.
+  void Finish() {
+    if (printed_on_line_) std::printf("\n");
+    printed_on_line_ = false;
+  }
+
+ private:
+  bool enabled_;
+  bool tty_;
+  bool printed_on_line_ = false;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+int Main(int argc, char** argv) {
+  std::vector<std::string> args(argv + 1, argv + argc);
+  vd::StatusOr<vd::ViewerOptions> parsed = vd::ParseViewerArgs(args);
+  if (!parsed.ok()) {
+    std::fprintf(stderr, "vdeform-viewer: %s\n", parsed.status().message().c_str());
+    return 2;
+  }
+  const vd::ViewerOptions& options = *parsed;
+  if (options.help) {
+    std::printf("%s", vd::ViewerHelpText().c_str());
+    return 0;
+  }
+  if (options.quiet) vd::SetLogLevel(vd::LogLevel::kWarning);
+  InstallSignalHandlers();
+
+  bool windowed = !options.headless;
+  if (windowed) {
+    vd::Status display = vd::CheckDisplay();
+    if (!display.ok()) {
+      VD_LOG_WARNING << "no display (" << display.message() << "): running headless";
+      windowed = false;
+    }
+  }
+
+  const std::string url = vd::ResolveLcmUrl(options.lcm_url);
+  lcm::LCM lcm(url);
+  if (!lcm.good()) {
+    std::fprintf(stderr, "vdeform-viewer: cannot open LCM at '%s' (on a loopback-only host: ip route add 224.0.0.0/4 dev lo)\n",
+                 url.c_str());
+    return 1;
+  }
+
+  vd::ReceiverOptions receiver_options;
+  receiver_options.save_dir = options.save_dir;
+  receiver_options.write_png = options.png;
+  receiver_options.render.width = options.image_width;
+  receiver_options.render.height = options.image_height;
+  receiver_options.color_mode = options.color_mode;
+  receiver_options.request_mesh = !options.no_request;
+  receiver_options.sender = "vdeform-viewer:" + std::to_string(getpid());
+  vd::StatusOr<std::unique_ptr<vd::MeshReceiver>> created = vd::MeshReceiver::Create(&lcm, receiver_options);
+  if (!created.ok()) {
+    std::fprintf(stderr, "vdeform-viewer: %s\n", created.status().ToString().c_str());
+    return 1;
+  }
+  vd::MeshReceiver& receiver = **created;
+  VD_LOG_INFO << "listening on " << url << " (" << vd::kMeshChannel << ", " << vd::kStatusChannel << ")"
+              << (options.no_request ? "" : "; asked the server for its current meshes")
+              << (options.save_dir.empty() ? "" : "; saving to " + options.save_dir);
+
+  vd::RunOptions run;
+  run.count = options.count;
+  run.timeout_s = options.timeout_s;
+  StatusPrinter printer(!options.quiet && !windowed);
+  std::unique_ptr<vd::MeshWindow> window;
+  if (windowed) {
+    vd::StatusOr<std::unique_ptr<vd::MeshWindow>> opened =
+        vd::MeshWindow::Open("vdeform-viewer", receiver_options.render, options.color_mode);
+    if (opened.ok()) {
+      window = std::move(opened).value();
+    } else {
+      VD_LOG_WARNING << opened.status().ToString() << ": running headless";
+      printer = StatusPrinter(!options.quiet);
+    }
+  }
+  std::function<void()> tick;
+  if (window) {
+    // Short LCM waits keep the window responsive; waitKey does the rest of the pacing.
+    run.poll_ms = 5;
+    tick = [&] {
+      if (!window->Update(receiver, 10)) g_stop.store(true);
+    };
+  } else {
+    tick = [&] { printer.Tick(receiver); };
+  }
+
+  const vd::Status ran = receiver.Run(run, &g_stop, tick);
+  printer.Finish();
+  window.reset();
+  const vd::Status finished = receiver.Finish();
+  if (!finished.ok()) std::fprintf(stderr, "vdeform-viewer: %s\n", finished.ToString().c_str());
+  std::printf("%s", vd::SummaryText(receiver.stats(), receiver.last_status(), receiver.written_paths()).c_str());
+  std::fflush(stdout);
+  if (!ran.ok()) {
+    std::fprintf(stderr, "vdeform-viewer: %s\n", ran.message().c_str());
+    return 1;
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return Main(argc, argv);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "vdeform-viewer: unexpected error: %s\n", e.what());
+    return 1;
+  }
+}

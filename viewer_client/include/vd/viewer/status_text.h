@@ -1,0 +1,38 @@
+#pragma once
+// Text the viewer shows: the terminal status line, the window's overlay and the exit summary.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+#include <vdeform/server_status_t.hpp>
+
+#include "vd/viewer/receiver.h"
+#include "vd/viewer/render.h"
+
+namespace vd {
+
+// "IDLE", "TRACKING", "TRACKING_LOST", "ERROR" or "INVALID(n)".
+std::string ServerStateName(int8_t state);
+// "812 B", "3.4 KB", "12.0 MB".
+std::string FormatBytes(int64_t bytes);
+
+// One line: meshes received, seq, bytes, and the server's state, counters, fps and stage times.
+std::string StatusLine(const ReceiverStats& stats, const std::optional<vdeform::server_status_t>& status);
+
+// The window's overlay, a few short lines: state, frames processed/dropped, fps, per-stage ms,
+// mesh size and the colouring in use (`requested` and what `used` fell back to).
+std::vector<std::string> StatusOverlayLines(const ReceiverStats& stats,
+                                            const std::optional<vdeform::server_status_t>& status,
+                                            ColorMode requested, ColorMode used);
+
+// Draws `lines` top-left on a translucent band so they stay legible over any mesh.
+void DrawOverlay(cv::Mat& image, const std::vector<std::string>& lines);
+
+// The exit summary: meshes received/decoded/failed, bytes, last seq, last status, and the paths
+// written (all of them up to `max_paths`, else the first and last few and a count).
+std::string SummaryText(const ReceiverStats& stats, const std::optional<vdeform::server_status_t>& status,
+                        const std::vector<std::string>& written_paths, size_t max_paths = 20);
+
+}  // namespace vd
