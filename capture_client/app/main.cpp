@@ -42,7 +42,7 @@ Source:
   --intrinsics FX,FY,CX,CY  override the source's intrinsics (pixels)
   --depth-scale S        override the raw depth units per metre
   --start N              first frame to send (finite sources), default 0
-  --count N              send at most N frames, default all
+  --count N              send at most N frames (with --loop: per pass), default all
   --stride N             send every N-th frame, default 1
   --loop                 restart at --start after the last frame (endless)
   --no-noise             synthetic scenes without Kinect-like depth noise
