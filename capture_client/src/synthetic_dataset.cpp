@@ -1,6 +1,5 @@
 // Writes a synthetic scene as a VolumeDeform-layout folder with ground truth.
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
@@ -9,6 +8,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "vd/capture/synthetic.h"
+#include "vd/common/codecs.h"
 
 namespace vd {
 namespace {
@@ -17,47 +17,6 @@ std::string FramePath(const std::string& dir, int k, const char* suffix) {
   char name[64];
   std::snprintf(name, sizeof(name), "frame-%06d.%s", k, suffix);
   return (std::filesystem::path(dir) / name).string();
-}
-
-template <typename T>
-void AppendLittleEndian(std::string* out, T value) {
-  unsigned char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));
-  const uint16_t probe = 1;
-  const bool little = *reinterpret_cast<const unsigned char*>(&probe) == 1;
-  for (size_t i = 0; i < sizeof(T); ++i) out->push_back(static_cast<char>(bytes[little ? i : sizeof(T) - 1 - i]));
-}
-
-// Binary little-endian PLY with float xyz, float normals and uchar rgb when present, and int32
-// faces: the layout codecs.h documents for vd::WritePly, which lives in vd::common.
-Status WriteGroundTruthPly(const std::string& path, const TriangleMesh& mesh) {
-  VD_RETURN_IF_ERROR(mesh.Validate());
-  const bool normals = !mesh.normals.empty();
-  const bool colors = !mesh.colors.empty();
-  std::ostringstream header;
-  header << "ply\nformat binary_little_endian 1.0\ncomment vdeform synthetic ground truth\n"
-         << "element vertex " << mesh.num_vertices() << "\nproperty float x\nproperty float y\nproperty float z\n";
-  if (normals) header << "property float nx\nproperty float ny\nproperty float nz\n";
-  if (colors) header << "property uchar red\nproperty uchar green\nproperty uchar blue\n";
-  header << "element face " << mesh.num_triangles() << "\nproperty list uchar int vertex_indices\nend_header\n";
-  std::string body = header.str();
-  body.reserve(body.size() + mesh.num_vertices() * 27 + mesh.num_triangles() * 13);
-  for (size_t v = 0; v < mesh.num_vertices(); ++v) {
-    for (int a = 0; a < 3; ++a) AppendLittleEndian(&body, mesh.positions[3 * v + a]);
-    if (normals)
-      for (int a = 0; a < 3; ++a) AppendLittleEndian(&body, mesh.normals[3 * v + a]);
-    if (colors)
-      for (int a = 0; a < 3; ++a) body.push_back(static_cast<char>(mesh.colors[3 * v + a]));
-  }
-  for (size_t t = 0; t < mesh.num_triangles(); ++t) {
-    body.push_back(3);
-    for (int a = 0; a < 3; ++a) AppendLittleEndian(&body, mesh.triangles[3 * t + a]);
-  }
-  std::ofstream out(path, std::ios::binary);
-  if (!out) return Unavailable("cannot create '" + path + "'");
-  out.write(body.data(), static_cast<std::streamsize>(body.size()));
-  if (!out) return DataLoss("short write to '" + path + "'");
-  return Status::Ok();
 }
 
 Status WriteText(const std::string& path, const std::string& text) {
@@ -96,7 +55,7 @@ Status WriteSyntheticDataset(const SyntheticScene& scene, const std::string& dir
     const RgbdFrame frame = scene.Render(i);
     VD_RETURN_IF_ERROR(WriteImage(FramePath(dir, i, "color.png"), frame.color));
     VD_RETURN_IF_ERROR(WriteImage(FramePath(dir, i, "depth.png"), frame.depth));
-    VD_RETURN_IF_ERROR(WriteGroundTruthPly(FramePath(dir, i, "gt.ply"), scene.GroundTruthMesh(i)));
+    VD_RETURN_IF_ERROR(WritePly(FramePath(dir, i, "gt.ply"), scene.GroundTruthMesh(i)));
     const Eigen::Matrix4d pose = scene.CameraPose(i).matrix();
     std::ostringstream text;
     text << std::setprecision(17);

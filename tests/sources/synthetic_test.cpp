@@ -16,6 +16,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "vd/common/camera.h"
+#include "vd/common/codecs.h"
 
 namespace vd {
 namespace {
@@ -486,30 +487,6 @@ TEST(SyntheticTest, RenderTime) {
   }
 }
 
-// Counts and checks a binary PLY header; returns the byte size the body must have.
-bool ParsePlyHeader(const std::string& bytes, size_t* vertices, size_t* faces, size_t* header_size,
-                    size_t* vertex_bytes) {
-  const size_t end = bytes.find("end_header\n");
-  if (end == std::string::npos || bytes.rfind("ply\nformat binary_little_endian 1.0\n", 0) != 0) return false;
-  *header_size = end + 11;
-  std::istringstream in(bytes.substr(0, end));
-  std::string line;
-  *vertex_bytes = 0;
-  bool in_vertex = false;
-  while (std::getline(in, line)) {
-    std::istringstream words(line);
-    std::string w0, w1, w2;
-    words >> w0 >> w1 >> w2;
-    if (w0 == "element") {
-      in_vertex = w1 == "vertex";
-      (in_vertex ? *vertices : *faces) = std::stoul(w2);
-    } else if (w0 == "property" && in_vertex) {
-      *vertex_bytes += w1 == "float" ? 4 : 1;
-    }
-  }
-  return true;
-}
-
 TEST(SyntheticTest, WritesDataset) {
   auto scene = Make("cloth", true);
   const std::string dir = testing::TempDir() + "/vd_synthetic_dataset";
@@ -537,19 +514,13 @@ TEST(SyntheticTest, WritesDataset) {
     EXPECT_EQ(cv::norm(depth, frame.depth, cv::NORM_INF), 0.0);
     EXPECT_EQ(cv::norm(color, frame.color, cv::NORM_INF), 0.0);
 
-    std::ifstream ply(dir + prefix + "gt.ply", std::ios::binary);
-    const std::string bytes((std::istreambuf_iterator<char>(ply)), std::istreambuf_iterator<char>());
-    size_t vertices = 0, faces = 0, header = 0, vertex_bytes = 0;
-    ASSERT_TRUE(ParsePlyHeader(bytes, &vertices, &faces, &header, &vertex_bytes));
+    auto ply = ReadPly(dir + prefix + "gt.ply");
+    ASSERT_TRUE(ply.ok()) << ply.status().ToString();
     const TriangleMesh mesh = scene->GroundTruthMesh(f);
-    EXPECT_EQ(vertices, mesh.num_vertices());
-    EXPECT_EQ(faces, mesh.num_triangles());
-    EXPECT_EQ(vertex_bytes, 27u);
-    ASSERT_EQ(bytes.size(), header + vertices * vertex_bytes + faces * 13);
-    float first[3];
-    std::memcpy(first, bytes.data() + header, sizeof(first));
-    EXPECT_EQ(first[0], mesh.positions[0]);
-    EXPECT_EQ(first[2], mesh.positions[2]);
+    EXPECT_EQ(ply->positions, mesh.positions);
+    EXPECT_EQ(ply->normals, mesh.normals);
+    EXPECT_EQ(ply->colors, mesh.colors);
+    EXPECT_EQ(ply->triangles, mesh.triangles);
 
     std::ifstream pose_file(dir + prefix + "pose.txt");
     Eigen::Matrix4d pose;
