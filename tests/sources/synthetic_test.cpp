@@ -112,7 +112,24 @@ TEST(SyntheticTest, OptionsAndNames) {
     EXPECT_EQ(frame.seq, 7);
     EXPECT_EQ(frame.utime, std::llround(7 * 1e6 / 30.0));
     EXPECT_FLOAT_EQ(frame.depth_scale, 1000.f);
+    // Frames outside the sequence are clamped to its ends.
+    EXPECT_EQ(cv::norm(scene->Render(-3).depth, scene->Render(0).depth, cv::NORM_INF), 0.0);
+    EXPECT_EQ(scene->GroundTruthMesh(1000).positions, scene->GroundTruthMesh(59).positions);
   }
+
+  // Other image sizes keep the field of view.
+  SyntheticOptions small;
+  small.width = 320;
+  small.height = 240;
+  small.num_frames = 10;
+  auto scene = MakeSyntheticScene("cloth", small);
+  ASSERT_TRUE(scene.ok());
+  EXPECT_FLOAT_EQ((*scene)->intrinsics().fx, 262.5f);
+  EXPECT_FLOAT_EQ((*scene)->intrinsics().cx, 159.5f);
+  EXPECT_EQ((*scene)->num_frames(), 10);
+  const RgbdFrame frame = (*scene)->Render(9);
+  EXPECT_TRUE(frame.Validate().ok());
+  EXPECT_GT(cv::countNonZero(frame.depth), 0.1 * 320 * 240);
 }
 
 TEST(SyntheticTest, SameSeedSameFramesOtherSeedOtherNoise) {
