@@ -1,0 +1,219 @@
+// Depth, colour and mesh codec cost at 640x480 / ~100k triangles: encode and decode time and
+// encoded bytes (counter "bytes"). Uses 7-Scenes frame 0 when ../shared/data is present, else a
+// synthetic noisy depth ramp and colour gradient (the label says which).
+#include <cmath>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <benchmark/benchmark.h>
+#include <opencv2/imgcodecs.hpp>
+
+#include "vd/common/codecs.h"
+
+namespace vd {
+namespace {
+
+struct Images {
+  cv::Mat depth;
+  cv::Mat color;
+  std::string label;
+};
+
+const Images& TestImages() {
+  static const Images images = [] {
+    Images im;
+    const std::string dir = std::string(VD_SHARED_DATA_DIR) + "/7scenes_redkitchen/";
+    im.depth = cv::imread(dir + "frame-000000.depth.png", cv::IMREAD_UNCHANGED);
+    im.color = cv::imread(dir + "frame-000000.color.jpg", cv::IMREAD_COLOR);
+    if (im.depth.type() == CV_16UC1 && im.depth.size() == cv::Size(640, 480) && im.color.size() == im.depth.size()) {
+      im.label = "7scenes frame-000000";
+      return im;
+    }
+    im.label = "SYNTHETIC noisy ramp (no shared data)";
+    im.depth.create(480, 640, CV_16UC1);
+    im.color.create(480, 640, CV_8UC3);
+    std::mt19937 rng(1);
+    std::normal_distribution<double> noise(0.0, 4.0);
+    for (int y = 0; y < 480; ++y)
+      for (int x = 0; x < 640; ++x) {
+        const bool hole = (x < 20) || ((x / 40 + y / 30) % 7 == 0);
+        im.depth.at<uint16_t>(y, x) = hole ? 0 : static_cast<uint16_t>(900 + 2 * x + y + noise(rng));
+        im.color.at<cv::Vec3b>(y, x) = cv::Vec3b(static_cast<uint8_t>(x / 3), static_cast<uint8_t>(y / 2),
+                                                 static_cast<uint8_t>(128 + 60 * std::sin(x * 0.05) + noise(rng)));
+      }
+    return im;
+  }();
+  return images;
+}
+
+// PNG through cv::imencode with an explicit zlib level (our API uses OpenCV's default).
+std::vector<uint8_t> EncodePngLevel(const cv::Mat& depth, int level) {
+  std::vector<uint8_t> out;
+  cv::imencode(".png", depth, out, {cv::IMWRITE_PNG_COMPRESSION, level});
+  return out;
+}
+
+// png_level < 0: EncodeDepth (OpenCV default parameters).
+void BM_DepthEncode(benchmark::State& state, DepthEncoding encoding, int png_level) {
+  const Images& im = TestImages();
+  size_t bytes = 0;
+  for (auto _ : state) {
+    if (png_level >= 0) {
+      auto out = EncodePngLevel(im.depth, png_level);
+      bytes = out.size();
+      benchmark::DoNotOptimize(out.data());
+    } else {
+      auto out = EncodeDepth(im.depth, encoding);
+      if (!out.ok()) state.SkipWithError(out.status().ToString().c_str());
+      bytes = out->size();
+      benchmark::DoNotOptimize(out->data());
+    }
+  }
+  state.counters["bytes"] = static_cast<double>(bytes);
+  state.counters["ratio_vs_raw"] = static_cast<double>(bytes) / (640.0 * 480.0 * 2.0);
+  state.SetLabel(im.label);
+}
+
+void BM_DepthDecode(benchmark::State& state, DepthEncoding encoding, int png_level) {
+  const Images& im = TestImages();
+  const std::vector<uint8_t> bytes = png_level >= 0 ? EncodePngLevel(im.depth, png_level) : *EncodeDepth(im.depth, encoding);
+  for (auto _ : state) {
+    auto depth = DecodeDepth(bytes.data(), bytes.size(), encoding, im.depth.cols, im.depth.rows);
+    if (!depth.ok()) state.SkipWithError(depth.status().ToString().c_str());
+    benchmark::DoNotOptimize(depth->data);
+  }
+  state.counters["bytes"] = static_cast<double>(bytes.size());
+  state.SetLabel(im.label);
+}
+
+void BM_JpegEncode(benchmark::State& state) {
+  const Images& im = TestImages();
+  const int quality = static_cast<int>(state.range(0));
+  size_t bytes = 0;
+  for (auto _ : state) {
+    auto out = EncodeColor(im.color, ColorEncoding::kJpeg, quality);
+    if (!out.ok()) state.SkipWithError(out.status().ToString().c_str());
+    bytes = out->size();
+    benchmark::DoNotOptimize(out->data());
+  }
+  state.counters["bytes"] = static_cast<double>(bytes);
+  state.SetLabel(im.label);
+}
+
+void BM_JpegDecode(benchmark::State& state) {
+  const Images& im = TestImages();
+  const std::vector<uint8_t> bytes = *EncodeColor(im.color, ColorEncoding::kJpeg, static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    auto color = DecodeColor(bytes.data(), bytes.size(), ColorEncoding::kJpeg, im.color.cols, im.color.rows);
+    if (!color.ok()) state.SkipWithError(color.status().ToString().c_str());
+    benchmark::DoNotOptimize(color->data);
+  }
+  state.counters["bytes"] = static_cast<double>(bytes.size());
+  state.SetLabel(im.label);
+}
+
+// UV sphere of radius 0.5 m: 158 rings x 316 segments = 99,224 triangles, 49,614 vertices, with
+// a smooth colour field like a textured reconstruction.
+const TriangleMesh& BenchMesh() {
+  static const TriangleMesh mesh = [] {
+    const int rings = 158, segments = 316;
+    const float pi = 3.14159265f;
+    TriangleMesh m;
+    auto add = [&](float t, float p) {
+      const float x = 0.5f * std::sin(t) * std::cos(p), y = 0.5f * std::sin(t) * std::sin(p), z = 0.5f * std::cos(t) + 1.f;
+      m.positions.insert(m.positions.end(), {x, y, z});
+      m.colors.insert(m.colors.end(), {static_cast<uint8_t>(128 + 120 * x), static_cast<uint8_t>(128 + 120 * y),
+                                       static_cast<uint8_t>(60 + 100 * (z - 0.5f))});
+    };
+    add(0.f, 0.f);
+    for (int r = 1; r < rings; ++r)
+      for (int s = 0; s < segments; ++s) add(pi * r / rings, 2 * pi * s / segments);
+    add(pi, 0.f);
+    const int south = static_cast<int>(m.num_vertices()) - 1;
+    auto ring = [&](int r, int s) { return 1 + (r - 1) * segments + (s % segments); };
+    for (int s = 0; s < segments; ++s) {
+      m.triangles.insert(m.triangles.end(), {0, ring(1, s), ring(1, s + 1)});
+      m.triangles.insert(m.triangles.end(), {south, ring(rings - 1, s + 1), ring(rings - 1, s)});
+    }
+    for (int r = 1; r + 1 < rings; ++r)
+      for (int s = 0; s < segments; ++s) {
+        m.triangles.insert(m.triangles.end(), {ring(r, s), ring(r + 1, s), ring(r + 1, s + 1)});
+        m.triangles.insert(m.triangles.end(), {ring(r, s), ring(r + 1, s + 1), ring(r, s + 1)});
+      }
+    return m;
+  }();
+  return mesh;
+}
+
+DracoOptions Draco(int speed) {
+  DracoOptions options;
+  options.position_bits = 14;
+  options.speed = speed;
+  return options;
+}
+
+void BM_DracoEncode(benchmark::State& state) {
+  const TriangleMesh& mesh = BenchMesh();
+  size_t bytes = 0;
+  for (auto _ : state) {
+    auto out = EncodeMeshDraco(mesh, Draco(static_cast<int>(state.range(0))));
+    if (!out.ok()) state.SkipWithError(out.status().ToString().c_str());
+    bytes = out->size();
+    benchmark::DoNotOptimize(out->data());
+  }
+  state.counters["bytes"] = static_cast<double>(bytes);
+  state.counters["triangles"] = static_cast<double>(mesh.num_triangles());
+}
+
+void BM_DracoDecode(benchmark::State& state) {
+  const std::vector<uint8_t> bytes = *EncodeMeshDraco(BenchMesh(), Draco(static_cast<int>(state.range(0))));
+  for (auto _ : state) {
+    auto mesh = DecodeMeshDraco(bytes.data(), bytes.size());
+    if (!mesh.ok()) state.SkipWithError(mesh.status().ToString().c_str());
+    benchmark::DoNotOptimize(mesh->positions.data());
+  }
+  state.counters["bytes"] = static_cast<double>(bytes.size());
+}
+
+void BM_PlyEncode(benchmark::State& state) {
+  size_t bytes = 0;
+  for (auto _ : state) {
+    auto out = EncodePly(BenchMesh());
+    bytes = out->size();
+    benchmark::DoNotOptimize(out->data());
+  }
+  state.counters["bytes"] = static_cast<double>(bytes);
+}
+
+void BM_PlyDecode(benchmark::State& state) {
+  const std::vector<uint8_t> bytes = *EncodePly(BenchMesh());
+  for (auto _ : state) {
+    auto mesh = DecodePly(bytes.data(), bytes.size());
+    if (!mesh.ok()) state.SkipWithError(mesh.status().ToString().c_str());
+    benchmark::DoNotOptimize(mesh->positions.data());
+  }
+  state.counters["bytes"] = static_cast<double>(bytes.size());
+}
+
+BENCHMARK_CAPTURE(BM_DepthEncode, raw16, DepthEncoding::kRaw16, -1)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthEncode, png16_default, DepthEncoding::kPng16, -1)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthEncode, png16_level1, DepthEncoding::kPng16, 1)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthEncode, png16_level6, DepthEncoding::kPng16, 6)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthEncode, rvl, DepthEncoding::kRvl, -1)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthDecode, raw16, DepthEncoding::kRaw16, -1)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthDecode, png16_default, DepthEncoding::kPng16, -1)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthDecode, png16_level1, DepthEncoding::kPng16, 1)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthDecode, png16_level6, DepthEncoding::kPng16, 6)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DepthDecode, rvl, DepthEncoding::kRvl, -1)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_JpegEncode)->Arg(75)->Arg(90)->Arg(95)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_JpegDecode)->Arg(75)->Arg(90)->Arg(95)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DracoEncode)->Arg(3)->Arg(7)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_DracoDecode)->Arg(3)->Arg(7)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_PlyEncode)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_PlyDecode)->Unit(benchmark::kMillisecond);
+
+}  // namespace
+}  // namespace vd
+
+BENCHMARK_MAIN();
