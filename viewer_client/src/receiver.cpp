@@ -46,7 +46,11 @@ StatusOr<std::unique_ptr<MeshReceiver>> MeshReceiver::Create(lcm::LCM* lcm, cons
   receiver->status_subscription_ = lcm->subscribe(kStatusChannel, &MeshReceiver::OnStatus, receiver.get());
   if (!receiver->mesh_subscription_ || !receiver->status_subscription_)
     return Unavailable(std::string("cannot subscribe to ") + kMeshChannel + " and " + kStatusChannel);
-  if (options.request_mesh) VD_RETURN_IF_ERROR(receiver->RequestMesh());
+  // A provider that cannot publish (a file:// log opened for replay) still delivers meshes.
+  if (options.request_mesh) {
+    Status sent = receiver->RequestMesh();
+    if (!sent.ok()) receiver->LogOnce("request", sent);
+  }
   return receiver;
 }
 

@@ -89,7 +89,8 @@ class MeshReceiver {
   using Clock = std::chrono::steady_clock;
 
   // `lcm` must outlive the receiver. Subscribes to the mesh and status channels, creates
-  // save_dir, and publishes a REQUEST_MESH unless options.request_mesh is false.
+  // save_dir, and publishes a REQUEST_MESH unless options.request_mesh is false (a failure to
+  // publish is logged, not fatal: a log being replayed cannot take requests).
   static StatusOr<std::unique_ptr<MeshReceiver>> Create(lcm::LCM* lcm, const ReceiverOptions& options);
   ~MeshReceiver();
   MeshReceiver(const MeshReceiver&) = delete;
