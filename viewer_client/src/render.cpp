@@ -146,9 +146,10 @@ StatusOr<RenderResult> RenderMesh(const TriangleMesh& mesh, const std::vector<ui
   std::vector<Eigen::Vector2d> s(n);
   for (size_t i = 0; i < n; ++i) s[i] = Eigen::Vector2d(f * p[i].x() / p[i].z() + cx, f * p[i].y() / p[i].z() + cy);
 
-  // The z-buffer holds 1/z (interpolates linearly in screen space; 0 means empty).
+  // Pass 1, visibility: the z-buffer holds 1/z (linear in screen space; 0 means empty) and the
+  // triangle seen at each pixel. Shading waits for pass 2 so hidden surfaces cost no shading.
   std::vector<float> inv_depth(static_cast<size_t>(w) * h, 0.f);
-  const double ambient = options.ambient;
+  std::vector<int32_t> visible(static_cast<size_t>(w) * h, -1);
   for (size_t t = 0; t < num_tri; ++t) {
     const int32_t i0 = mesh.triangles[3 * t], i1 = mesh.triangles[3 * t + 1], i2 = mesh.triangles[3 * t + 2];
     const double area = Edge(s[i0], s[i1], s[i2].x(), s[i2].y());
@@ -162,36 +163,61 @@ StatusOr<RenderResult> RenderMesh(const TriangleMesh& mesh, const std::vector<ui
     const int x1 = static_cast<int>(std::clamp(std::ceil(u_hi - 0.5), -1.0, static_cast<double>(w - 1)));
     const int y0 = static_cast<int>(std::clamp(std::floor(v_lo - 0.5), 0.0, static_cast<double>(h)));
     const int y1 = static_cast<int>(std::clamp(std::ceil(v_hi - 0.5), -1.0, static_cast<double>(h - 1)));
+    if (x0 > x1 || y0 > y1) continue;
+    const double inv_area = 1.0 / area;
     const double iz0 = 1.0 / p[i0].z(), iz1 = 1.0 / p[i1].z(), iz2 = 1.0 / p[i2].z();
+    // Barycentric weights are affine in the pixel position: step them along the row.
+    const double dw0 = -(s[i2].y() - s[i1].y()) * inv_area, dw1 = -(s[i0].y() - s[i2].y()) * inv_area;
     for (int y = y0; y <= y1; ++y) {
-      const double py = y + 0.5;
-      auto* row = result.image.ptr<cv::Vec3b>(y);
-      float* depth_row = result.depth.ptr<float>(y);
-      for (int x = x0; x <= x1; ++x) {
-        const double px = x + 0.5;
-        const double w0 = Edge(s[i1], s[i2], px, py) / area;
-        const double w1 = Edge(s[i2], s[i0], px, py) / area;
+      const double py = y + 0.5, px0 = x0 + 0.5;
+      double w0 = Edge(s[i1], s[i2], px0, py) * inv_area;
+      double w1 = Edge(s[i2], s[i0], px0, py) * inv_area;
+      float* depth_row = &inv_depth[static_cast<size_t>(y) * w];
+      int32_t* visible_row = &visible[static_cast<size_t>(y) * w];
+      for (int x = x0; x <= x1; ++x, w0 += dw0, w1 += dw1) {
         const double w2 = 1.0 - w0 - w1;
         if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-        const double inv_z = w0 * iz0 + w1 * iz1 + w2 * iz2;
-        float& stored = inv_depth[static_cast<size_t>(y) * w + x];
-        if (inv_z <= stored) continue;
-        stored = static_cast<float>(inv_z);
-        // Perspective-correct weights for the vertex attributes.
-        const double b0 = w0 * iz0 / inv_z, b1 = w1 * iz1 / inv_z, b2 = w2 * iz2 / inv_z;
-        const Eigen::Vector3d nrm = (b0 * normal[i0] + b1 * normal[i1] + b2 * normal[i2]).normalized();
-        const Eigen::Vector3d ray = Eigen::Vector3d((px - cx) / f, (py - cy) / f, 1.0).normalized();
-        // Headlight: the light sits at the eye, so brightness is |cos| between normal and ray
-        // (two-sided: marching-cubes surfaces seen from behind at their borders stay lit).
-        const double lambert = std::isfinite(nrm.x()) ? std::abs(nrm.dot(ray)) : 1.0;
-        const double shade = ambient + (1.0 - ambient) * lambert;
-        double rgb_px[3] = {kGrey, kGrey, kGrey};
-        if (!rgb.empty())
-          for (int c = 0; c < 3; ++c) rgb_px[c] = b0 * rgb[3 * i0 + c] + b1 * rgb[3 * i1 + c] + b2 * rgb[3 * i2 + c];
-        for (int c = 0; c < 3; ++c)
-          row[x][2 - c] = static_cast<uint8_t>(std::clamp(rgb_px[c] * shade + 0.5, 0.0, 255.0));
-        depth_row[x] = static_cast<float>(1.0 / inv_z);
+        const float inv_z = static_cast<float>(w0 * iz0 + w1 * iz1 + w2 * iz2);
+        if (inv_z <= depth_row[x]) continue;
+        depth_row[x] = inv_z;
+        visible_row[x] = static_cast<int32_t>(t);
       }
+    }
+  }
+
+  // Pass 2, shading of the visible surface only.
+  const double ambient = options.ambient;
+  for (int y = 0; y < h; ++y) {
+    auto* row = result.image.ptr<cv::Vec3b>(y);
+    float* depth_row = result.depth.ptr<float>(y);
+    const double py = y + 0.5;
+    for (int x = 0; x < w; ++x) {
+      const int32_t t = visible[static_cast<size_t>(y) * w + x];
+      if (t < 0) continue;
+      const int32_t i0 = mesh.triangles[3 * t], i1 = mesh.triangles[3 * t + 1], i2 = mesh.triangles[3 * t + 2];
+      const double px = x + 0.5;
+      const double inv_area = 1.0 / Edge(s[i0], s[i1], s[i2].x(), s[i2].y());
+      // Clamped: stepping in pass 1 can accept a pixel a rounding error outside an edge.
+      const double w0 = std::max(0.0, Edge(s[i1], s[i2], px, py) * inv_area);
+      const double w1 = std::max(0.0, Edge(s[i2], s[i0], px, py) * inv_area);
+      const double w2 = std::max(0.0, 1.0 - w0 - w1);
+      const double iz0 = w0 / p[i0].z(), iz1 = w1 / p[i1].z(), iz2 = w2 / p[i2].z();
+      const double inv_z = iz0 + iz1 + iz2;
+      if (!(inv_z > 0)) continue;
+      // Perspective-correct weights for the vertex attributes.
+      const double b0 = iz0 / inv_z, b1 = iz1 / inv_z, b2 = iz2 / inv_z;
+      const Eigen::Vector3d nrm = (b0 * normal[i0] + b1 * normal[i1] + b2 * normal[i2]).normalized();
+      const Eigen::Vector3d ray = Eigen::Vector3d((px - cx) / f, (py - cy) / f, 1.0).normalized();
+      // Headlight: the light sits at the eye, so brightness is |cos| between normal and ray
+      // (two-sided: marching-cubes surfaces seen from behind at their borders stay lit).
+      const double lambert = std::isfinite(nrm.x()) ? std::abs(nrm.dot(ray)) : 1.0;
+      const double shade = ambient + (1.0 - ambient) * lambert;
+      double rgb_px[3] = {kGrey, kGrey, kGrey};
+      if (!rgb.empty())
+        for (int c = 0; c < 3; ++c) rgb_px[c] = b0 * rgb[3 * i0 + c] + b1 * rgb[3 * i1 + c] + b2 * rgb[3 * i2 + c];
+      for (int c = 0; c < 3; ++c)
+        row[x][2 - c] = static_cast<uint8_t>(std::clamp(rgb_px[c] * shade + 0.5, 0.0, 255.0));
+      depth_row[x] = static_cast<float>(1.0 / inv_z);
     }
   }
   result.covered_pixels = cv::countNonZero(result.depth);
