@@ -125,7 +125,7 @@ int Main(int argc, char** argv) {
   }
   vd::MeshReceiver& receiver = **created;
   VD_LOG_INFO << "listening on " << url << " (" << vd::kMeshChannel << ", " << vd::kStatusChannel << ")"
-              << (options.no_request ? "" : "; asked the server for its current meshes")
+              << (receiver.stats().requests_sent > 0 ? "; asked the server for its current meshes" : "")
               << (options.save_dir.empty() ? "" : "; saving to " + options.save_dir);
 
   vd::RunOptions run;
@@ -154,7 +154,18 @@ int Main(int argc, char** argv) {
     tick = [&] { printer.Tick(receiver); };
   }
 
-  const vd::Status ran = receiver.Run(run, &g_stop, tick);
+  vd::Status ran = receiver.Run(run, &g_stop, tick);
+  // A file:// log being replayed ends with LCM refusing to handle more: the end of the input.
+  const bool replay = url.rfind("file://", 0) == 0;
+  if (replay && ran.code() == vd::StatusCode::kUnavailable) {
+    if (options.count > 0 && receiver.stats().live_meshes < options.count) {
+      ran = vd::OutOfRange("the log ended after " + std::to_string(receiver.stats().live_meshes) + " of the " +
+                           std::to_string(options.count) + " live meshes asked for (--count)");
+    } else {
+      VD_LOG_INFO << "end of the log " << url;
+      ran = vd::Status::Ok();
+    }
+  }
   printer.Finish();
   window.reset();
   const vd::Status finished = receiver.Finish();

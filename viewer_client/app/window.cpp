@@ -30,7 +30,8 @@ StatusOr<std::unique_ptr<MeshWindow>> MeshWindow::Open(const std::string& title,
   VD_RETURN_IF_ERROR(render.Validate());
   std::unique_ptr<MeshWindow> window(new MeshWindow(title, render, color_mode));
   try {
-    cv::namedWindow(title, cv::WINDOW_AUTOSIZE);
+    // GUI_NORMAL: without Qt's toolbar, whose own zoom would take the mouse wheel from us.
+    cv::namedWindow(title, cv::WINDOW_AUTOSIZE | cv::WINDOW_GUI_NORMAL);
     cv::setMouseCallback(title, &MeshWindow::OnMouse, window.get());
   } catch (const cv::Exception& e) {
     return Unavailable(std::string("cannot open the viewer window: ") + e.what());

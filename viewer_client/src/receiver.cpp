@@ -1,8 +1,10 @@
 #include "vd/viewer/receiver.h"
 
+#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <exception>
 #include <filesystem>
 #include <system_error>
@@ -77,8 +79,12 @@ Status MeshReceiver::RequestMesh() {
 }
 
 Status MeshReceiver::Poll(int timeout_ms) {
-  if (lcm_->handleTimeout(std::max(0, timeout_ms)) < 0) return Unavailable("LCM failed while waiting for messages");
-  return Status::Ok();
+  errno = 0;
+  if (lcm_->handleTimeout(std::max(0, timeout_ms)) >= 0) return Status::Ok();
+  // A signal (SIGINT/SIGTERM asking us to stop) interrupts LCM's select(): not a failure.
+  if (errno == EINTR) return Status::Ok();
+  const std::string cause = errno != 0 ? std::string(": ") + std::strerror(errno) : "";
+  return Unavailable("LCM stopped delivering messages (the provider failed, or a file:// log ended)" + cause);
 }
 
 Status MeshReceiver::Run(const RunOptions& options, const std::atomic<bool>* stop, const std::function<void()>& tick) {

@@ -106,8 +106,13 @@ std::vector<std::string> StatusOverlayLines(const ReceiverStats& stats,
   if (stats.meshes_failed) mesh += "  failed " + std::to_string(stats.meshes_failed);
   lines.push_back(mesh);
   std::string colour = std::string("colour ") + ColorModeName(requested);
-  if (used != requested) colour += std::string(" (showing ") + ColorModeName(used) + ": no canonical mesh of this frame)";
-  lines.push_back(colour + "  [c] colour  [r] reset view  [q] quit");
+  if (used != requested) {
+    colour += std::string(" (showing ") + ColorModeName(used);
+    if (requested == ColorMode::kCanonical) colour += ": no canonical mesh of this frame";
+    colour += ")";
+  }
+  lines.push_back(colour);
+  lines.push_back("c colour  r reset  q quit  drag rotate  wheel zoom");
   return lines;
 }
 

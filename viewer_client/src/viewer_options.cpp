@@ -127,6 +127,8 @@ At start-up it asks the server for its current meshes (REQUEST_MESH), so it show
 Flags:
   --lcm-url URL     LCM URL to listen on. Default: $LCM_DEFAULT_URL if set, else
                     udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304
+                    A recorded log replays with file:///path/log.lcm?speed=0 (the end of the
+                    log ends the run, exit 0 unless --count was not reached).
   --headless        never open a window; print the status line instead.
   --save-dir DIR    write each received mesh as DIR/frame-%06d.mesh.ply (LIVE, the frame's seq)
                     and DIR/frame-%06d.canonical.ply (CANONICAL); DIR is created if missing.
