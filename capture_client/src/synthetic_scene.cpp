@@ -62,7 +62,7 @@ ParametricScene::ParametricScene(std::string name, const SyntheticOptions& optio
 void ParametricScene::AddChart(const Chart& chart) {
   assert(chart.rest);
   assert(chart.nu >= (chart.wrap_u ? 3 : 2));
-  assert(chart.nv >= 2 + (chart.pole_v0 ? 1 : 0) + (chart.pole_v1 ? 1 : 0) - 1);
+  assert(chart.nv >= (chart.pole_v0 && chart.pole_v1 ? 3 : 2));
   const int nu = chart.nu, nv = chart.nv;
   const int32_t base = static_cast<int32_t>(rest_.size());
   // Row j starts at row_start[j]; pole rows hold one vertex.

@@ -47,7 +47,10 @@ const float kMuted[kPaletteSize][3] = {
 inline float Luminance(const Eigen::Vector3f& bgr) { return 0.114f * bgr[0] + 0.587f * bgr[1] + 0.299f * bgr[2]; }
 
 inline Eigen::Vector3f PaletteColor(uint32_t index, bool muted) {
-  const float* c = (muted ? kMuted : kColourful)[index % kPaletteSize];
+  // Decayed to pointers before choosing: GCC 12 with -fsanitize=undefined miscompiles indexing
+  // a conditional expression of array type (it always read row 0).
+  const float(*table)[3] = muted ? kMuted : kColourful;
+  const float* c = table[index % kPaletteSize];
   return Eigen::Vector3f(c[0], c[1], c[2]);
 }
 
