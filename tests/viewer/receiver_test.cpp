@@ -398,6 +398,15 @@ TEST_F(ReceiverTest, RefusesUnusableOptions) {
   ASSERT_FALSE(created.ok());
   EXPECT_NE(created.status().message().find("save directory"), std::string::npos);
   EXPECT_FALSE(MeshReceiver::Create(nullptr, ReceiverOptions{}).ok());
+  // The queue capacity is LCM's per-subscription bound (memq ignores it; udpm applies it).
+  ReceiverOptions negative_queue;
+  negative_queue.mesh_queue_capacity = -1;
+  auto refused = MeshReceiver::Create(&lcm_, negative_queue);
+  ASSERT_FALSE(refused.ok());
+  EXPECT_NE(refused.status().message().find("mesh_queue_capacity = -1"), std::string::npos);
+  ReceiverOptions deep_queue;
+  deep_queue.mesh_queue_capacity = 240;
+  EXPECT_TRUE(MeshReceiver::Create(&lcm_, deep_queue).ok());
 }
 
 TEST_F(ReceiverTest, FinishWithoutMeshesWritesNothing) {

@@ -38,6 +38,9 @@ struct ReceiverOptions {
   bool request_mesh = true;
   // control_t.sender, so the server's log says who asked.
   std::string sender = "vdeform-viewer";
+  // Mesh messages LCM keeps queued while we render or write (its own default is 30; beyond the
+  // capacity it drops). Saving wants a deeper queue than showing: 0 keeps LCM's default.
+  int mesh_queue_capacity = 0;
   Status Validate() const;
 };
 
@@ -74,7 +77,7 @@ struct ReceiverStats {
 };
 
 struct RunOptions {
-  // Return after this many new live meshes; 0: no limit.
+  // Return once stats().live_meshes reaches this (new live meshes, repeats not counted); 0: no limit.
   int64_t count = 0;
   // Fail with DeadlineExceeded when neither a mesh nor a status message arrived for this many
   // seconds; 0: wait forever.
