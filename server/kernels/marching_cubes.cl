@@ -1,55 +1,67 @@
 #include "shared/marching_cubes.h"
 
+/* All marching-cubes kernels run one work item per grid row (fixed y, z) looping over x. */
+
 __kernel void vd_mc_classify(__global const float* tsdf, __global const float* weight, VdVolume vol,
                              __global const uchar* tri_counts, __global ushort* codes, __global uint* cell_tris) {
-  int i = get_global_id(0);
-  int x = i % vol.dim_x, yz = i / vol.dim_x;
-  uint code = vd_mc_cell_code(tsdf, weight, vol, x, yz % vol.dim_y, yz / vol.dim_y);
-  codes[i] = (ushort)code;
-  cell_tris[i] = (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
+  int yz = get_global_id(0);
+  int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  for (int x = 0; x < vol.dim_x; ++x) {
+    int i = yz * vol.dim_x + x;
+    uint code = vd_mc_cell_code(tsdf, weight, vol, x, y, z);
+    codes[i] = (ushort)code;
+    cell_tris[i] = (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
+  }
 }
 
 __kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* codes, VdVolume vol,
-                                __global uchar* masks, __global uint* counts) {
-  int i = get_global_id(0);
-  int x = i % vol.dim_x, yz = i / vol.dim_x;
-  uint m = vd_mc_vertex_mask(tsdf, codes, vol, x, yz % vol.dim_y, yz / vol.dim_y);
-  masks[i] = (uchar)m;
-  counts[i] = (uint)vd_popcount3(m);
+                          __global uchar* masks, __global uint* counts) {
+  int yz = get_global_id(0);
+  int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  for (int x = 0; x < vol.dim_x; ++x) {
+    int i = yz * vol.dim_x + x;
+    uint m = vd_mc_vertex_mask(tsdf, codes, vol, x, y, z);
+    masks[i] = (uchar)m;
+    counts[i] = (uint)vd_popcount3(m);
+  }
 }
 
 __kernel void vd_mc_vertices(__global const float* tsdf, __global const uint* color, VdVolume vol,
                              __global const uchar* masks, __global const uint* vert_offset,
                              __global float4* positions, __global float4* normals, __global uint* colors) {
-  int i = get_global_id(0);
-  uint m = masks[i];
-  if (m == 0u) return;
-  int x = i % vol.dim_x, yz = i / vol.dim_x;
+  int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
-  uint out = vert_offset[i];
-  for (int a = 0; a < 3; ++a) {
-    if (!(m & (1u << a))) continue;
-    float4 p, n;
-    uint c;
-    vd_mc_make_vertex(tsdf, color, vol, x, y, z, a, &p, &n, &c);
-    positions[out] = p;
-    normals[out] = n;
-    colors[out] = c;
-    ++out;
+  for (int x = 0; x < vol.dim_x; ++x) {
+    int i = yz * vol.dim_x + x;
+    uint m = masks[i];
+    if (m == 0u) continue;
+    uint out = vert_offset[i];
+    for (int a = 0; a < 3; ++a) {
+      if (!(m & (1u << a))) continue;
+      float4 p, n;
+      uint c;
+      vd_mc_make_vertex(tsdf, color, vol, x, y, z, a, &p, &n, &c);
+      positions[out] = p;
+      normals[out] = n;
+      colors[out] = c;
+      ++out;
+    }
   }
 }
 
 __kernel void vd_mc_triangles(__global const ushort* codes, __global const uint* tri_offset,
                               __global const char* tri_table, __global const uchar* masks,
                               __global const uint* vert_offset, VdVolume vol, __global int* tris) {
-  int i = get_global_id(0);
-  uint code = codes[i];
-  if (!(code & VD_MC_VALID)) return;
-  int x = i % vol.dim_x, yz = i / vol.dim_x;
+  int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
-  uint out = tri_offset[i];
-  __global const char* row = tri_table + 16 * (code & 255u);
-  for (int k = 0; row[k] >= 0; ++k) tris[3 * out + k] = vd_mc_edge_vertex(masks, vert_offset, vol, x, y, z, row[k]);
+  for (int x = 0; x < vol.dim_x; ++x) {
+    int i = yz * vol.dim_x + x;
+    uint code = codes[i];
+    if (!(code & VD_MC_VALID)) continue;
+    uint out = tri_offset[i];
+    __global const char* row = tri_table + 16 * (code & 255u);
+    for (int k = 0; row[k] >= 0; ++k) tris[3 * out + k] = vd_mc_edge_vertex(masks, vert_offset, vol, x, y, z, row[k]);
+  }
 }
 
 /* Grid units to world metres: the rigid (undeformed) placement of marching-cubes vertices. */

@@ -1,7 +1,10 @@
 #include "shared/tsdf.h"
 
+/* One work item per grid row (fixed y, z): the inner loop walks contiguous memory, which a CPU
+ * device runs like a plain loop and a GPU still spreads over dim_y * dim_z items. */
 __kernel void vd_tsdf_integrate(__global float* tsdf, __global float* weight, __global uint* color, VdVolume vol,
                                 VdCamera cam, VdPose world_to_cam, __global const float* depth,
                                 __global const uint* rgba) {
-  vd_tsdf_integrate_voxel(tsdf, weight, color, get_global_id(0), vol, cam, world_to_cam, depth, rgba);
+  int yz = get_global_id(0);
+  vd_tsdf_integrate_row(tsdf, weight, color, yz % vol.dim_y, yz / vol.dim_y, vol, cam, world_to_cam, depth, rgba);
 }

@@ -45,16 +45,18 @@ VD_INLINE void vd_tsdf_integrate_point(VD_GLOBAL float* tsdf, VD_GLOBAL float* w
   }
 }
 
-/* Rigid integration: the grid point sits at its regular position, seen through world_to_cam. */
-VD_INLINE void vd_tsdf_integrate_voxel(VD_GLOBAL float* tsdf, VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color,
-                                       int index, VdVolume vol, VdCamera cam, VdPose world_to_cam,
-                                       VD_GLOBAL const float* depth, VD_GLOBAL const vd_uint* rgba) {
-  int x = index % vol.dim_x;
-  int yz = index / vol.dim_x;
-  int y = yz % vol.dim_y;
-  int z = yz / vol.dim_y;
-  vd_float4 p_cam = vd_pose_apply(world_to_cam, vd_voxel_position(vol, x, y, z));
-  vd_tsdf_integrate_point(tsdf, weight, color, index, p_cam, vol, cam, depth, rgba);
+/* Rigid integration of grid row (y, z): grid points at their regular positions, seen through
+ * world_to_cam. Positions are p0 + x * step (no accumulation, so no drift along the row). */
+VD_INLINE void vd_tsdf_integrate_row(VD_GLOBAL float* tsdf, VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color, int y,
+                                     int z, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                                     VD_GLOBAL const float* depth, VD_GLOBAL const vd_uint* rgba) {
+  vd_float4 p0 = vd_pose_apply(world_to_cam, vd_voxel_position(vol, 0, y, z));
+  vd_float4 step = vd_pose_rotate(world_to_cam, VD_F4(vol.voxel_size, 0.0f, 0.0f, 0.0f));
+  int row = vol.dim_x * (y + vol.dim_y * z);
+  for (int x = 0; x < vol.dim_x; ++x) {
+    vd_float4 p = p0 + step * (float)x;
+    vd_tsdf_integrate_point(tsdf, weight, color, row + x, p, vol, cam, depth, rgba);
+  }
 }
 
 #endif /* VD_TSDF_H */

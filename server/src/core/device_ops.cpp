@@ -64,7 +64,7 @@ Status DeviceOps::ResetVolume(DeviceVolume& v) {
 
 Status DeviceOps::IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
                                 const ocl::Buffer<uint32_t>& rgba) {
-  return ctx_->Run("vd_tsdf_integrate", v.num_voxels(), v.tsdf, v.weight, v.color, v.vol, cam, world_to_cam, depth,
+  return ctx_->Run("vd_tsdf_integrate", v.num_rows(), v.tsdf, v.weight, v.color, v.vol, cam, world_to_cam, depth,
                    rgba);
 }
 
@@ -110,10 +110,10 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_counts_, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_vert_offset_, n + 1));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_tri_offset_, n + 1));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_classify", n, v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_counts_));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_classify", v.num_rows(), v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_counts_));
   uint32_t nt = 0, nv = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(mc_counts_, n, mc_tri_offset_, &nt));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_masks", n, v.tsdf, mc_codes_, v.vol, mc_masks_, mc_counts_));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_masks", v.num_rows(), v.tsdf, mc_codes_, v.vol, mc_masks_, mc_counts_));
   VD_RETURN_IF_ERROR(ScanExclusive(mc_counts_, n, mc_vert_offset_, &nv));
   mesh->num_vertices = nv;
   mesh->num_triangles = nt;
@@ -123,9 +123,9 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->colors, nv));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->triangles, 3 * static_cast<size_t>(nt)));
   if (nv == 0 || nt == 0) return Status::Ok();
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_vertices", n, v.tsdf, v.color, v.vol, mc_masks_, mc_vert_offset_,
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_vertices", v.num_rows(), v.tsdf, v.color, v.vol, mc_masks_, mc_vert_offset_,
                                mesh->positions_grid, mesh->normals, mesh->colors));
-  return ctx_->Run("vd_mc_triangles", n, mc_codes_, mc_tri_offset_, mc_tri_table_, mc_masks_, mc_vert_offset_, v.vol,
+  return ctx_->Run("vd_mc_triangles", v.num_rows(), mc_codes_, mc_tri_offset_, mc_tri_table_, mc_masks_, mc_vert_offset_, v.vol,
                    mesh->triangles);
 }
 

@@ -15,6 +15,8 @@ struct DeviceVolume {
   ocl::Buffer<float> weight;
   ocl::Buffer<uint32_t> color;
   size_t num_voxels() const { return static_cast<size_t>(vol.dim_x) * vol.dim_y * vol.dim_z; }
+  // Grid rows (fixed y, z): the work items of the per-row kernels.
+  size_t num_rows() const { return static_cast<size_t>(vol.dim_y) * vol.dim_z; }
 };
 
 struct DeviceMesh {

@@ -184,6 +184,14 @@ Status Engine::Preprocess(const RgbdFrame& frame) {
     VD_RETURN_IF_ERROR(ctx_->Reserve(&nmap_[l], nl));
   }
   const cv::Mat depth = frame.depth.isContinuous() ? frame.depth : frame.depth.clone();
+  // Valid pixels in range, the reference for the tracking failure check.
+  valid_pixels_ = 0;
+  const uint16_t lo = uint16_t(std::clamp(params_.min_depth * frame.depth_scale, 1.f, 65535.f));
+  const uint16_t hi = uint16_t(std::clamp(params_.max_depth * frame.depth_scale, 1.f, 65535.f));
+  for (size_t i = 0; i < n; ++i) {
+    const uint16_t d = depth.ptr<uint16_t>()[i];
+    valid_pixels_ += d >= lo && d <= hi;
+  }
   VD_RETURN_IF_ERROR(ctx_->Upload(raw_depth_, depth.ptr<uint16_t>(), n));
   rgba_host_.resize(n);
   if (frame.color.empty()) {
@@ -251,12 +259,7 @@ Status Engine::Track(FrameResult* result) {
   result->icp_inliers = inliers;
   result->icp_rmse = inliers > 0 ? float(std::sqrt(sq / inliers)) : 0.f;
   // Failure checks: too few inliers, or an implausible jump.
-  int valid = 0;
-  {
-    std::vector<float> d(static_cast<size_t>(cam_.width) * cam_.height);
-    VD_RETURN_IF_ERROR(ctx_->Download(depth_raw_m_, d.data(), d.size()));
-    for (float v : d) valid += v > 0.f;
-  }
+  const int valid = valid_pixels_;
   const Eigen::Matrix4d delta = pose_.inverse() * T;
   const double dt = delta.topRightCorner<3, 1>().norm();
   const double dr = Eigen::AngleAxisd(Eigen::Matrix3d(delta.topLeftCorner<3, 3>())).angle() * 180.0 / M_PI;

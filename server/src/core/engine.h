@@ -124,6 +124,7 @@ class Engine {
   std::array<ocl::Buffer<vd_float4>, 3> nmap_;
   ocl::Buffer<float> scratch_;
   std::vector<uint32_t> rgba_host_;
+  int valid_pixels_ = 0;
 };
 
 // Conversions between Eigen poses and the kernels' VdPose.

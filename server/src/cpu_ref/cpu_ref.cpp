@@ -41,9 +41,10 @@ void NormalMap(const vd_float4* vmap, vd_float4* nmap, int width, int height, fl
 
 void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
                    const float* depth, const uint32_t* rgba) {
-  const int n = vol.dim_x * vol.dim_y * vol.dim_z;
+  const int rows = vol.dim_y * vol.dim_z;
 #pragma omp parallel for schedule(static)
-  for (int i = 0; i < n; ++i) vd_tsdf_integrate_voxel(tsdf, weight, color, i, vol, cam, world_to_cam, depth, rgba);
+  for (int r = 0; r < rows; ++r)
+    vd_tsdf_integrate_row(tsdf, weight, color, r % vol.dim_y, r / vol.dim_y, vol, cam, world_to_cam, depth, rgba);
 }
 
 McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* color, VdVolume vol) {
