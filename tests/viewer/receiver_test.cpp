@@ -409,6 +409,25 @@ TEST_F(ReceiverTest, RefusesUnusableOptions) {
   EXPECT_TRUE(MeshReceiver::Create(&lcm_, deep_queue).ok());
 }
 
+TEST_F(ReceiverTest, EmptyMeshIsSavedAndRendersBackground) {
+  // The server publishes an empty mesh before anything is fused (data_size 0).
+  ScratchDir dir;
+  ReceiverOptions options;
+  options.save_dir = dir.path();
+  options.write_png = true;
+  auto receiver = Make(options);
+  PublishMesh(TriangleMesh{}, 0, vdeform::mesh_t::KIND_LIVE);
+  Drain();
+  EXPECT_EQ(receiver->stats().meshes_decoded, 1);
+  EXPECT_EQ(receiver->stats().last_live_vertices, 0);
+  ASSERT_TRUE(receiver->Finish().ok());
+  auto ply = ReadPly(dir / "frame-000000.mesh.ply");
+  ASSERT_TRUE(ply.ok()) << ply.status().ToString();
+  EXPECT_EQ(ply->num_vertices(), 0u);
+  EXPECT_EQ(CoveredPixels(dir / "frame-000000.png"), 0);
+  EXPECT_EQ(CoveredPixels(dir / "final.png"), 0);
+}
+
 TEST_F(ReceiverTest, FinishWithoutMeshesWritesNothing) {
   ScratchDir dir;
   ReceiverOptions options;
