@@ -1,41 +1,48 @@
 #include "shared/marching_cubes.h"
 
-/* All marching-cubes kernels run one work item per grid row (fixed y, z) looping over x. */
+/* All marching-cubes kernels run one work item per grid row (fixed y, z) looping over x. Offsets
+ * within a row are running sums in that loop, so only the per-row totals need a device scan. */
 
 __kernel void vd_mc_classify(__global const float* tsdf, __global const float* weight, VdVolume vol,
-                             __global const uchar* tri_counts, __global ushort* codes, __global uint* cell_tris) {
+                             __global const uchar* tri_counts, __global ushort* codes, __global uint* row_tris) {
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  uint total = 0u;
   for (int x = 0; x < vol.dim_x; ++x) {
-    int i = yz * vol.dim_x + x;
     uint code = vd_mc_cell_code(tsdf, weight, vol, x, y, z);
-    codes[i] = (ushort)code;
-    cell_tris[i] = (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
+    codes[yz * vol.dim_x + x] = (ushort)code;
+    total += (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
   }
+  row_tris[yz] = total;
 }
 
 __kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* codes, VdVolume vol,
-                          __global uchar* masks, __global uint* counts) {
+                          __global uchar* masks, __global uint* row_verts) {
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  uint total = 0u;
   for (int x = 0; x < vol.dim_x; ++x) {
-    int i = yz * vol.dim_x + x;
     uint m = vd_mc_vertex_mask(tsdf, codes, vol, x, y, z);
-    masks[i] = (uchar)m;
-    counts[i] = (uint)vd_popcount3(m);
+    masks[yz * vol.dim_x + x] = (uchar)m;
+    total += (uint)vd_popcount3(m);
   }
+  row_verts[yz] = total;
 }
 
+/* Also records each vertex-owning grid point's first vertex index for the triangle pass. */
 __kernel void vd_mc_vertices(__global const float* tsdf, __global const uint* color, VdVolume vol,
-                             __global const uchar* masks, __global const uint* vert_offset,
+                             __global const uchar* masks, __global const uint* row_verts,
+                             __global const uint* row_vert_offset, __global uint* vert_offset,
                              __global float4* positions, __global float4* normals, __global uint* colors) {
   int yz = get_global_id(0);
+  if (row_verts[yz] == 0u) return;
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  uint out = row_vert_offset[yz];
   for (int x = 0; x < vol.dim_x; ++x) {
     int i = yz * vol.dim_x + x;
     uint m = masks[i];
     if (m == 0u) continue;
-    uint out = vert_offset[i];
+    vert_offset[i] = out;
     for (int a = 0; a < 3; ++a) {
       if (!(m & (1u << a))) continue;
       float4 p, n;
@@ -49,18 +56,22 @@ __kernel void vd_mc_vertices(__global const float* tsdf, __global const uint* co
   }
 }
 
-__kernel void vd_mc_triangles(__global const ushort* codes, __global const uint* tri_offset,
-                              __global const char* tri_table, __global const uchar* masks,
-                              __global const uint* vert_offset, VdVolume vol, __global int* tris) {
+__kernel void vd_mc_triangles(__global const ushort* codes, __global const uint* row_tris,
+                              __global const uint* row_tri_offset, __global const char* tri_table,
+                              __global const uchar* masks, __global const uint* vert_offset, VdVolume vol,
+                              __global int* tris) {
   int yz = get_global_id(0);
+  if (row_tris[yz] == 0u) return;
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  uint out = row_tri_offset[yz];
   for (int x = 0; x < vol.dim_x; ++x) {
-    int i = yz * vol.dim_x + x;
-    uint code = codes[i];
+    uint code = codes[yz * vol.dim_x + x];
     if (!(code & VD_MC_VALID)) continue;
-    uint out = tri_offset[i];
     __global const char* row = tri_table + 16 * (code & 255u);
-    for (int k = 0; row[k] >= 0; ++k) tris[3 * out + k] = vd_mc_edge_vertex(masks, vert_offset, vol, x, y, z, row[k]);
+    for (int k = 0; row[k] >= 0; k += 3) {
+      for (int c = 0; c < 3; ++c) tris[3 * out + c] = vd_mc_edge_vertex(masks, vert_offset, vol, x, y, z, row[k + c]);
+      ++out;
+    }
   }
 }
 

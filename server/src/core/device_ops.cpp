@@ -104,17 +104,19 @@ Status DeviceOps::ScanExclusive(const ocl::Buffer<uint32_t>& in, size_t n, ocl::
 }
 
 Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
-  const size_t n = v.num_voxels();
+  const size_t n = v.num_voxels(), rows = v.num_rows();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_codes_, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_masks_, n));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_counts_, n));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_vert_offset_, n + 1));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_tri_offset_, n + 1));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_classify", v.num_rows(), v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_counts_));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_vert_offset_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_tris_, rows));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_verts_, rows));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_tri_offset_, rows + 1));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_vert_offset_, rows + 1));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_classify", rows, v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_row_tris_));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_masks", rows, v.tsdf, mc_codes_, v.vol, mc_masks_, mc_row_verts_));
   uint32_t nt = 0, nv = 0;
-  VD_RETURN_IF_ERROR(ScanExclusive(mc_counts_, n, mc_tri_offset_, &nt));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_masks", v.num_rows(), v.tsdf, mc_codes_, v.vol, mc_masks_, mc_counts_));
-  VD_RETURN_IF_ERROR(ScanExclusive(mc_counts_, n, mc_vert_offset_, &nv));
+  VD_RETURN_IF_ERROR(ScanExclusive(mc_row_tris_, rows, mc_row_tri_offset_, &nt));
+  VD_RETURN_IF_ERROR(ScanExclusive(mc_row_verts_, rows, mc_row_vert_offset_, &nv));
   mesh->num_vertices = nv;
   mesh->num_triangles = nt;
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->positions_grid, nv));
@@ -123,10 +125,10 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->colors, nv));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->triangles, 3 * static_cast<size_t>(nt)));
   if (nv == 0 || nt == 0) return Status::Ok();
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_vertices", v.num_rows(), v.tsdf, v.color, v.vol, mc_masks_, mc_vert_offset_,
-                               mesh->positions_grid, mesh->normals, mesh->colors));
-  return ctx_->Run("vd_mc_triangles", v.num_rows(), mc_codes_, mc_tri_offset_, mc_tri_table_, mc_masks_, mc_vert_offset_, v.vol,
-                   mesh->triangles);
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_vertices", rows, v.tsdf, v.color, v.vol, mc_masks_, mc_row_verts_,
+                               mc_row_vert_offset_, mc_vert_offset_, mesh->positions_grid, mesh->normals, mesh->colors));
+  return ctx_->Run("vd_mc_triangles", rows, mc_codes_, mc_row_tris_, mc_row_tri_offset_, mc_tri_table_, mc_masks_,
+                   mc_vert_offset_, v.vol, mesh->triangles);
 }
 
 Status DeviceOps::GridToWorld(const VdVolume& vol, DeviceMesh* mesh) {

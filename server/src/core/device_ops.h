@@ -76,12 +76,15 @@ class DeviceOps {
   ocl::Context* ctx_;
   ocl::Buffer<int8_t> mc_tri_table_;
   ocl::Buffer<uint8_t> mc_tri_counts_;
-  // Marching-cubes scratch, one entry per grid point.
+  // Marching-cubes scratch, one entry per grid point: cell codes, vertex masks, first vertex index.
   ocl::Buffer<uint16_t> mc_codes_;
   ocl::Buffer<uint8_t> mc_masks_;
-  ocl::Buffer<uint32_t> mc_counts_;
   ocl::Buffer<uint32_t> mc_vert_offset_;
-  ocl::Buffer<uint32_t> mc_tri_offset_;
+  // Per grid row: triangle and vertex totals and their exclusive prefix sums.
+  ocl::Buffer<uint32_t> mc_row_tris_;
+  ocl::Buffer<uint32_t> mc_row_verts_;
+  ocl::Buffer<uint32_t> mc_row_tri_offset_;
+  ocl::Buffer<uint32_t> mc_row_vert_offset_;
   // Scan scratch per recursion level.
   std::vector<ocl::Buffer<uint32_t>> scan_sums_;
   std::vector<ocl::Buffer<uint32_t>> scan_offsets_;
