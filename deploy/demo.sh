@@ -75,7 +75,7 @@ echo "== vdeform demo summary =="
 grep -h "vdeform-capture:" "$out/capture.log" | tail -1 || true
 grep -h -E "^vdeform-server: received|^stages" "$out/server.log" || true
 awk -v a="$t0" -v b="$t1" -v n="$frames" 'BEGIN { printf "end-to-end: %.1f s, %.2f frames per second\n", b - a, n / (b - a) }'
-grep -h -E "vdeform-viewer:" "$out/viewer.log" | tail -3 || true
+grep -h -E "^  meshes received|^  bytes" "$out/viewer.log" | sed 's/^  /viewer: /' || true
 nply=$(ls "$out/meshes"/*.mesh.ply 2>/dev/null | wc -l)
 echo "received meshes (PLY): $out/meshes ($nply live meshes)"
 if [ -f "$out/meshes/final.png" ]; then

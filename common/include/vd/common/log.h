@@ -24,14 +24,19 @@ class LogLine {
   int line_;
   std::ostringstream stream_;
 };
+// Swallows the stream so VD_LOG is one expression (safe inside if/else without braces).
+struct Voidify {
+  void operator&(std::ostream&) {}
+};
 }  // namespace internal
 
 }  // namespace vd
 
-#define VD_LOG(level)                                                        \
-  if (::vd::LogLevel::level < ::vd::GetLogLevel()) {                         \
-  } else                                                                     \
-    ::vd::internal::LogLine(::vd::LogLevel::level, __FILE__, __LINE__).stream()
+#define VD_LOG(level)                                                  \
+  (::vd::LogLevel::level < ::vd::GetLogLevel())                        \
+      ? (void)0                                                        \
+      : ::vd::internal::Voidify() &                                    \
+            ::vd::internal::LogLine(::vd::LogLevel::level, __FILE__, __LINE__).stream()
 #define VD_LOG_DEBUG VD_LOG(kDebug)
 #define VD_LOG_INFO VD_LOG(kInfo)
 #define VD_LOG_WARNING VD_LOG(kWarning)
