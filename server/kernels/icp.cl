@@ -4,7 +4,8 @@
  * adds the partials in double precision. */
 __kernel void vd_icp_reduce(__global const float4* vmap, __global const float4* nmap,
                             __global const float4* model_v, __global const float4* model_n, int n, int chunk,
-                            VdIcpParams prm, __global float* partials) {
+                            VdIcpParams prm, __global float* partials, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
   int g = get_global_id(0);
   float acc[VD_ICP_ACC];
   for (int k = 0; k < VD_ICP_ACC; ++k) acc[k] = 0.0f;

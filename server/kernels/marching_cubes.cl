@@ -4,7 +4,8 @@
  * within a row are running sums in that loop, so only the per-row totals need a device scan. */
 
 __kernel void vd_mc_classify(__global const float* tsdf, __global const float* weight, VdVolume vol,
-                             __global const uchar* tri_counts, __global ushort* codes, __global uint* row_tris) {
+                             __global const uchar* tri_counts, __global ushort* codes, __global uint* row_tris, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
   uint total = 0u;
@@ -17,7 +18,8 @@ __kernel void vd_mc_classify(__global const float* tsdf, __global const float* w
 }
 
 __kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* codes, VdVolume vol,
-                          __global uchar* masks, __global uint* row_verts) {
+                          __global uchar* masks, __global uint* row_verts, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
   uint total = 0u;
@@ -33,7 +35,8 @@ __kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* cod
 __kernel void vd_mc_vertices(__global const float* tsdf, __global const uint* color, VdVolume vol,
                              __global const uchar* masks, __global const uint* row_verts,
                              __global const uint* row_vert_offset, __global uint* vert_offset,
-                             __global float4* positions, __global float4* normals, __global uint* colors) {
+                             __global float4* positions, __global float4* normals, __global uint* colors, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   if (row_verts[yz] == 0u) return;
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
@@ -59,7 +62,8 @@ __kernel void vd_mc_vertices(__global const float* tsdf, __global const uint* co
 __kernel void vd_mc_triangles(__global const ushort* codes, __global const uint* row_tris,
                               __global const uint* row_tri_offset, __global const char* tri_table,
                               __global const uchar* masks, __global const uint* vert_offset, VdVolume vol,
-                              __global int* tris) {
+                              __global int* tris, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   if (row_tris[yz] == 0u) return;
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
@@ -76,7 +80,8 @@ __kernel void vd_mc_triangles(__global const ushort* codes, __global const uint*
 }
 
 /* Grid units to world metres: the rigid (undeformed) placement of marching-cubes vertices. */
-__kernel void vd_grid_to_world(__global const float4* grid_pos, VdVolume vol, __global float4* world) {
+__kernel void vd_grid_to_world(__global const float4* grid_pos, VdVolume vol, __global float4* world, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
   float4 g = grid_pos[i];
   world[i] = (float4)(vol.origin.x + vol.voxel_size * g.x, vol.origin.y + vol.voxel_size * g.y,

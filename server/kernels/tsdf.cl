@@ -4,7 +4,8 @@
  * device runs like a plain loop and a GPU still spreads over dim_y * dim_z items. */
 __kernel void vd_tsdf_integrate(__global float* tsdf, __global float* weight, __global uint* color, VdVolume vol,
                                 VdCamera cam, VdPose world_to_cam, __global const float* depth,
-                                __global const uint* rgba) {
+                                __global const uint* rgba, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   vd_tsdf_integrate_row(tsdf, weight, color, yz % vol.dim_y, yz / vol.dim_y, vol, cam, world_to_cam, depth, rgba);
 }

@@ -1,7 +1,8 @@
 #include "shared/icp.h"
 
 /* Reports the device's view of the shared struct sizes, checked against the host's in a test. */
-__kernel void vd_type_sizes(__global int* out) {
+__kernel void vd_type_sizes(__global int* out, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
   out[0] = (int)sizeof(VdCamera);
   out[1] = (int)sizeof(VdPose);
   out[2] = (int)sizeof(VdVolume);

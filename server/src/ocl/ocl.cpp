@@ -305,8 +305,10 @@ StatusOr<cl_kernel> Context::Kernel(const char* name) {
   return k;
 }
 
-Status Context::Enqueue(cl_kernel k, const char* name, size_t global) {
-  cl_int err = clEnqueueNDRangeKernel(queue_, k, 1, nullptr, &global, nullptr, 0, nullptr, nullptr);
+Status Context::Enqueue(cl_kernel k, const char* name, size_t items) {
+  const size_t local = kGroupSize;
+  const size_t global = (items + local - 1) / local * local;
+  cl_int err = clEnqueueNDRangeKernel(queue_, k, 1, nullptr, &global, &local, 0, nullptr, nullptr);
   if (err != CL_SUCCESS) return ClError(err, (std::string("clEnqueueNDRangeKernel ") + name).c_str(), __FILE__, __LINE__);
   return Status::Ok();
 }
