@@ -16,7 +16,8 @@ void ServerOptions::Register(FlagParser* f) {
   f->AddFloat("voxel-size", &voxel_size, "Grid spacing in metres");
   f->AddFloat("min-depth", &min_depth, "Depth below this many metres is ignored");
   f->AddFloat("max-depth", &max_depth, "Depth beyond this many metres is ignored");
-  f->AddInt("max-voxels", &max_voxels, "Largest grid (points) the automatic placement may allocate, 12 bytes each");
+  f->AddFloat("max-grid-mb", &max_grid_mb,
+              "Memory the grid may use, MB (12 bytes per point with --rigid-only, 44 with the deformation field)");
   f->AddInt("count", &count, "Offline mode: process at most N frames (-1 = all)");
   f->AddInt("start", &start, "Offline mode: first frame index");
   f->AddInt("stride", &stride, "Offline mode: use every n-th frame");
@@ -25,8 +26,8 @@ void ServerOptions::Register(FlagParser* f) {
                "frame-%06d.pose.txt (camera-to-world) per frame");
   f->AddString("stats-json", &stats_json, "Offline mode: write per-stage timing statistics, fps and peak memory");
   f->AddBool("rigid-only", &rigid_only,
-             "Rigid tracking and fusion only (the non-rigid solve of the core issue part 2 is not in this build: "
-             "every run is rigid)");
+             "Rigid tracking and fusion only, without a deformation field. (The non-rigid solve is not in this "
+             "build yet: without this flag the field is allocated and applied but stays the identity.)");
   f->AddBool("no-bilateral", &no_bilateral, "Track on the unfiltered depth");
   f->AddString("device", &device, "OpenCL device: index (see --list-devices) or name substring; default first GPU, else CPU");
   f->AddBool("list-devices", &list_devices, "List the OpenCL devices and exit");
@@ -40,7 +41,8 @@ EngineParams ServerOptions::ToEngineParams() const {
   p.voxel_size = float(voxel_size);
   p.min_depth = float(min_depth);
   p.max_depth = float(max_depth);
-  p.max_voxels = max_voxels;
+  p.max_grid_mb = max_grid_mb;
+  p.rigid_only = rigid_only;
   p.bilateral = !no_bilateral;
   return p;
 }

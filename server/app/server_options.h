@@ -16,7 +16,7 @@ struct ServerOptions {
   double voxel_size = 0.004;
   double min_depth = 0.2;
   double max_depth = 3.5;
-  int64_t max_voxels = 48ll * 1000 * 1000;
+  double max_grid_mb = 600.0;
   int64_t count = -1;
   int64_t start = 0;
   int64_t stride = 1;

@@ -106,7 +106,7 @@ int Main(int argc, char** argv) {
   std::vector<float> tsdf(nv, 1.f), weight(nv, 0.f);
   std::vector<uint32_t> color(nv, 0u);
   DeviceVolume dvol;
-  Check(ops.AllocVolume(vol, &dvol));
+  Check(ops.AllocVolume(vol, false, &dvol));
   auto cpu_int = [&] { cpu::IntegrateTsdf(tsdf.data(), weight.data(), color.data(), vol, cam, I, depth.data(), rgba.data()); };
   auto ocl_int = [&] {
     Check(ops.IntegrateTsdf(dvol, cam, I, *ddepth, *drgba));

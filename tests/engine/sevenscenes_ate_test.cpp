@@ -37,6 +37,7 @@ TEST(SevenScenesTest, RigidTrackingAteOnRedKitchen) {
   // the same sequence at finer voxels.
   p.voxel_size = 0.02f;
   p.max_depth = 3.5f;
+  p.rigid_only = true;
   auto engine = Engine::Create(p, "");
   ASSERT_TRUE(engine.ok()) << engine.status().ToString();
   const Eigen::Matrix4d gt0_inv = ReadPose(kDir + "/frame-000000.pose.txt").inverse();

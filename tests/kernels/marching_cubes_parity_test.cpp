@@ -46,7 +46,7 @@ cpu::McMesh RunOcl(ocl::Context* ctx, const Grid& g) {
   DeviceOps ops(ctx);
   EXPECT_TRUE(ops.Init().ok());
   DeviceVolume dv;
-  EXPECT_TRUE(ops.AllocVolume(g.vol, &dv).ok());
+  EXPECT_TRUE(ops.AllocVolume(g.vol, false, &dv).ok());
   EXPECT_TRUE(ctx->Upload(dv.tsdf, g.tsdf.data(), g.tsdf.size()).ok());
   EXPECT_TRUE(ctx->Upload(dv.weight, g.weight.data(), g.weight.size()).ok());
   EXPECT_TRUE(ctx->Upload(dv.color, g.color.data(), g.color.size()).ok());

@@ -34,7 +34,7 @@ TEST(TsdfParityTest, IntegrationMatchesCpuAndFindsTheSphere) {
   for (int k = 0; k < 2; ++k) cpu::IntegrateTsdf(tsdf.data(), weight.data(), color.data(), vol, cam, T, depth.data(), colors.data());
 
   DeviceVolume dv;
-  ASSERT_TRUE(ops.AllocVolume(vol, &dv).ok());
+  ASSERT_TRUE(ops.AllocVolume(vol, false, &dv).ok());
   auto ddepth = test::ToDevice(ctx, depth);
   auto dcol = test::ToDevice(ctx, colors);
   for (int k = 0; k < 2; ++k) ASSERT_TRUE(ops.IntegrateTsdf(dv, cam, T, ddepth, dcol).ok());

@@ -46,12 +46,19 @@ Status DeviceOps::NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_f
   return ctx_->Run("vd_normal_map", static_cast<size_t>(width) * height, vmap, nmap, width, height, max_jump);
 }
 
-Status DeviceOps::AllocVolume(const VdVolume& vol, DeviceVolume* out) {
+Status DeviceOps::AllocVolume(const VdVolume& vol, bool with_deformation, DeviceVolume* out) {
   out->vol = vol;
   const size_t n = out->num_voxels();
   VD_ASSIGN_OR_RETURN(out->tsdf, ctx_->Alloc<float>(n));
   VD_ASSIGN_OR_RETURN(out->weight, ctx_->Alloc<float>(n));
   VD_ASSIGN_OR_RETURN(out->color, ctx_->Alloc<uint32_t>(n));
+  if (with_deformation) {
+    VD_ASSIGN_OR_RETURN(out->def_pos, ctx_->Alloc<vd_float4>(n));
+    VD_ASSIGN_OR_RETURN(out->def_rot, ctx_->Alloc<vd_float4>(n));
+  } else {
+    out->def_pos = ocl::Buffer<vd_float4>();
+    out->def_rot = ocl::Buffer<vd_float4>();
+  }
   return ResetVolume(*out);
 }
 
@@ -59,7 +66,9 @@ Status DeviceOps::ResetVolume(DeviceVolume& v) {
   const size_t n = v.num_voxels();
   VD_RETURN_IF_ERROR(ctx_->Fill(v.tsdf, 1.0f, n));
   VD_RETURN_IF_ERROR(ctx_->Fill(v.weight, 0.0f, n));
-  return ctx_->Fill(v.color, 0u, n);
+  VD_RETURN_IF_ERROR(ctx_->Fill(v.color, 0u, n));
+  if (!v.has_deformation()) return Status::Ok();
+  return ctx_->Run("vd_deformation_reset", v.num_rows(), v.def_pos, v.def_rot, v.vol);
 }
 
 Status DeviceOps::IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
@@ -133,6 +142,11 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
 
 Status DeviceOps::GridToWorld(const VdVolume& vol, DeviceMesh* mesh) {
   return ctx_->Run("vd_grid_to_world", mesh->num_vertices, mesh->positions_grid, vol, mesh->positions);
+}
+
+Status DeviceOps::DeformVertices(const DeviceVolume& v, DeviceMesh* mesh) {
+  if (!v.has_deformation()) return FailedPrecondition("DeformVertices: the grid has no deformation field");
+  return ctx_->Run("vd_deform_vertices", mesh->num_vertices, mesh->positions_grid, v.def_pos, v.vol, mesh->positions);
 }
 
 Status DeviceOps::Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out) {

@@ -9,11 +9,17 @@
 
 namespace vd {
 
+// The unified grid (VolumeDeform section 4), structure of arrays. Bytes per grid point: 4 (D_i) +
+// 4 (W_i) + 4 (C_i, RGBA8 with A = colour weight) = 12 for the geometry, + 16 (t_i, w = optimisation
+// count) + 16 (R_i as a unit quaternion) = 44 with the deformation field (absent with rigid_only).
 struct DeviceVolume {
   VdVolume vol{};
   ocl::Buffer<float> tsdf;
   ocl::Buffer<float> weight;
   ocl::Buffer<uint32_t> color;
+  ocl::Buffer<vd_float4> def_pos;
+  ocl::Buffer<vd_float4> def_rot;
+  bool has_deformation() const { return !def_pos.empty(); }
   size_t num_voxels() const { return static_cast<size_t>(vol.dim_x) * vol.dim_y * vol.dim_z; }
   // Grid rows (fixed y, z): the work items of the per-row kernels.
   size_t num_rows() const { return static_cast<size_t>(vol.dim_y) * vol.dim_z; }
@@ -56,7 +62,7 @@ class DeviceOps {
   Status NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_float4>& nmap, int width, int height,
                    float max_jump);
 
-  Status AllocVolume(const VdVolume& vol, DeviceVolume* out);
+  Status AllocVolume(const VdVolume& vol, bool with_deformation, DeviceVolume* out);
   Status ResetVolume(DeviceVolume& v);
   Status IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
                        const ocl::Buffer<uint32_t>& rgba);
@@ -65,8 +71,10 @@ class DeviceOps {
   Status ScanExclusive(const ocl::Buffer<uint32_t>& in, size_t n, ocl::Buffer<uint32_t>& out, uint32_t* total);
   // Marching cubes; fills positions_grid, normals, colors, triangles (positions untouched).
   Status MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh);
-  // positions = origin + voxel_size * positions_grid.
+  // positions = origin + voxel_size * positions_grid (the rigid placement).
   Status GridToWorld(const VdVolume& vol, DeviceMesh* mesh);
+  // positions = S(positions_grid) through the grid's deformation field.
+  Status DeformVertices(const DeviceVolume& v, DeviceMesh* mesh);
   Status Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out);
   Status IcpReduce(const ocl::Buffer<vd_float4>& vmap, const ocl::Buffer<vd_float4>& nmap,
                    const ocl::Buffer<vd_float4>& model_v, const ocl::Buffer<vd_float4>& model_n, int n,

@@ -69,8 +69,7 @@ Status EngineParams::Validate() const {
   if (!(max_weight >= 1.f && max_weight <= 1e4f)) return Bad("max_weight", max_weight, "1 <= max_weight <= 1e4");
   if (!(min_depth >= 0.f && min_depth < max_depth)) return Bad("min_depth", min_depth, "0 <= min_depth < max_depth");
   if (!(max_depth <= 20.f)) return Bad("max_depth", max_depth, "max_depth <= 20 m");
-  if (!(max_voxels >= 1000 && max_voxels <= 400ll * 1000 * 1000))
-    return Bad("max_voxels", double(max_voxels), "1e3 <= max_voxels <= 4e8");
+  if (!(max_grid_mb >= 1.0 && max_grid_mb <= 64000.0)) return Bad("max_grid_mb", max_grid_mb, "1 <= max_grid_mb <= 64000");
   if (!(volume_margin >= 0.f && volume_margin <= 2.f)) return Bad("volume_margin", volume_margin, "0 <= volume_margin <= 2 m");
   if (!(bilateral_radius >= 1 && bilateral_radius <= 7)) return Bad("bilateral_radius", bilateral_radius, "1 <= r <= 7");
   if (!(bilateral_sigma_space_px > 0.f)) return Bad("bilateral_sigma_space_px", bilateral_sigma_space_px, "> 0");
@@ -140,6 +139,8 @@ StatusOr<VdVolume> Engine::PlaceVolume(const RgbdFrame& frame, const EngineParam
     mn[a] = lo[a] - margin;
     ext[a] = hi[a] - lo[a] + 2.f * margin;
   }
+  // Grid points the memory budget holds.
+  const double budget = p.max_grid_mb * 1e6 / (p.rigid_only ? 12.0 : 44.0);
   // Shrink around the centre until the grid fits the budget (the far part goes first in z).
   double scale = 1.0;
   for (int iter = 0; iter < 64; ++iter) {
@@ -148,14 +149,14 @@ StatusOr<VdVolume> Engine::PlaceVolume(const RgbdFrame& frame, const EngineParam
       dims[a] = std::max(8, static_cast<int>(std::ceil(ext[a] * scale / p.voxel_size)) + 1);
       total *= dims[a];
     }
-    if (total <= p.max_voxels) break;
+    if (double(total) <= budget) break;
     scale *= 0.95;
   }
   int64_t total = int64_t(dims[0]) * dims[1] * dims[2];
-  if (total > p.max_voxels) return FailedPrecondition("volume does not fit max_voxels");
+  if (double(total) > budget) return FailedPrecondition("the grid does not fit max_grid_mb");
   if (scale < 1.0) {
     VD_LOG_WARNING << "first frame spans " << ext[0] << " x " << ext[1] << " x " << ext[2] << " m; the grid of "
-                   << p.voxel_size * 1000 << " mm voxels is limited to " << p.max_voxels
+                   << p.voxel_size * 1000 << " mm voxels is limited to " << p.max_grid_mb << " MB = "
                    << " points, so it covers " << scale * 100 << "% of each side (nearest part kept in depth)";
     for (int a = 0; a < 2; ++a) mn[a] += 0.5f * float(1.0 - scale) * ext[a];
   }
@@ -283,7 +284,11 @@ Status Engine::Track(FrameResult* result) {
 Status Engine::ExtractMesh(FrameResult* result, bool download) {
   auto t0 = Clock::now();
   VD_RETURN_IF_ERROR(ops_.MarchingCubes(volume_, &mesh_));
-  VD_RETURN_IF_ERROR(ops_.GridToWorld(volume_.vol, &mesh_));
+  if (volume_.has_deformation()) {
+    VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
+  } else {
+    VD_RETURN_IF_ERROR(ops_.GridToWorld(volume_.vol, &mesh_));
+  }
   VD_RETURN_IF_ERROR(ctx_->Finish());
   result->times.ms[4] = MsSince(t0);
   if (!download) return Status::Ok();
@@ -337,9 +342,10 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
 
   if (!initialised_) {
     VD_ASSIGN_OR_RETURN(VdVolume vol, PlaceVolume(frame, params_));
-    if (volume_.num_voxels() != size_t(vol.dim_x) * vol.dim_y * vol.dim_z) {
+    if (volume_.num_voxels() != size_t(vol.dim_x) * vol.dim_y * vol.dim_z ||
+        volume_.has_deformation() == params_.rigid_only) {
       volume_ = DeviceVolume();
-      VD_RETURN_IF_ERROR(ops_.AllocVolume(vol, &volume_));
+      VD_RETURN_IF_ERROR(ops_.AllocVolume(vol, !params_.rigid_only, &volume_));
     } else {
       volume_.vol = vol;
       VD_RETURN_IF_ERROR(ops_.ResetVolume(volume_));

@@ -26,8 +26,9 @@ struct EngineParams {
   // Depth outside [min_depth, max_depth] metres is ignored (Kinect-class sensors: 0.4..4 m).
   float min_depth = 0.2f;
   float max_depth = 3.5f;
-  // Largest grid, in grid points, the automatic placement may allocate (12 bytes each).
-  int64_t max_voxels = 48ll * 1000 * 1000;
+  // Device memory the automatic grid placement may use, MB (12 bytes per grid point rigid-only,
+  // 44 with the deformation field); a larger first view is cropped around its centre.
+  double max_grid_mb = 600.0;
   // Space left around the first frame's points when placing the grid, metres.
   float volume_margin = 0.10f;
   // Edge-preserving smoothing of the depth used for tracking (fusion uses the raw depth).
@@ -48,6 +49,10 @@ struct EngineParams {
   // ... or the pose moves more than this per frame (the sensor does not teleport).
   float max_frame_translation = 0.20f;
   float max_frame_rotation_deg = 30.f;
+  // Rigid tracking and fusion only: no deformation field is allocated (12 instead of 44 bytes per
+  // grid point). Without it the field exists and deforms the mesh (identity until the non-rigid
+  // solve moves it).
+  bool rigid_only = false;
   Status Validate() const;
 };
 

@@ -3,6 +3,7 @@
 #include <numeric>
 
 #include "core/mc_table.h"
+#include "shared/deformation.h"
 #include "shared/marching_cubes.h"
 #include "shared/preprocess.h"
 #include "shared/raster.h"
@@ -45,6 +46,17 @@ void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, Vd
 #pragma omp parallel for schedule(static)
   for (int r = 0; r < rows; ++r)
     vd_tsdf_integrate_row(tsdf, weight, color, r % vol.dim_y, r / vol.dim_y, vol, cam, world_to_cam, depth, rgba);
+}
+
+void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol) {
+  const int rows = vol.dim_y * vol.dim_z;
+#pragma omp parallel for schedule(static)
+  for (int r = 0; r < rows; ++r) vd_deformation_reset_row(def_pos, def_rot, r % vol.dim_y, r / vol.dim_y, vol);
+}
+
+void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, VdVolume vol, vd_float4* out) {
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) out[i] = vd_deform_point(grid_pos[i], def_pos, vol);
 }
 
 McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* color, VdVolume vol) {

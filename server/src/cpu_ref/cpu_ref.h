@@ -21,6 +21,9 @@ void NormalMap(const vd_float4* vmap, vd_float4* nmap, int width, int height, fl
 void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
                    const float* depth, const uint32_t* rgba);
 
+void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
+void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, VdVolume vol, vd_float4* out);
+
 struct McMesh {
   // Vertex positions in grid units (x + t, y, z): cell and trilinear weights are implicit.
   std::vector<vd_float4> positions_grid;

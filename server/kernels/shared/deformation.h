@@ -1,0 +1,46 @@
+/* The deformation half of the unified grid (VolumeDeform section 4). Every grid point i stores its
+ * deformed position t_i (float4: xyz in metres, w = number of optimisations the point took part
+ * in) and its local rotation R_i as a unit quaternion (float4 x, y, z, w; 16 bytes, renormalisable,
+ * no gimbal lock; the paper stores Euler angles). t_i starts at the regular grid position, R_i at
+ * the identity. A canonical point x with grid coordinates g (cell floor(g), fractions g - floor(g))
+ * is deformed by S(x) = sum_k alpha_k(x) t_k over its cell's 8 corners (trilinear weights); the
+ * global rigid motion is the camera pose, applied after. */
+#ifndef VD_DEFORMATION_H
+#define VD_DEFORMATION_H
+
+#include "vd_types.h"
+
+VD_INLINE vd_float4 vd_rest_position(VdVolume vol, int x, int y, int z) {
+  return VD_F4(vol.origin.x + vol.voxel_size * (float)x, vol.origin.y + vol.voxel_size * (float)y,
+               vol.origin.z + vol.voxel_size * (float)z, 0.0f);
+}
+
+/* Resets grid row (y, z): rest positions, zero optimisation counts, identity rotations. */
+VD_INLINE void vd_deformation_reset_row(VD_GLOBAL vd_float4* def_pos, VD_GLOBAL vd_float4* def_rot, int y, int z,
+                                        VdVolume vol) {
+  int row = vol.dim_x * (y + vol.dim_y * z);
+  for (int x = 0; x < vol.dim_x; ++x) {
+    def_pos[row + x] = vd_rest_position(vol, x, y, z);
+    def_rot[row + x] = VD_F4(0.0f, 0.0f, 0.0f, 1.0f);
+  }
+}
+
+/* S(x) for a point given in grid units (as marching cubes emits vertices); w = 1. Points on the
+ * last grid plane use the cell below, so all 8 corners exist. */
+VD_INLINE vd_float4 vd_deform_point(vd_float4 g, VD_GLOBAL const vd_float4* def_pos, VdVolume vol) {
+  int cx = vd_min_i(vd_max_i((int)floor(g.x), 0), vol.dim_x - 2);
+  int cy = vd_min_i(vd_max_i((int)floor(g.y), 0), vol.dim_y - 2);
+  int cz = vd_min_i(vd_max_i((int)floor(g.z), 0), vol.dim_z - 2);
+  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
+  vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  for (int k = 0; k < 8; ++k) {
+    int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
+    float a = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+    vd_float4 t = def_pos[cx + ox + vol.dim_x * (cy + oy + vol.dim_y * (cz + oz))];
+    acc = acc + t * a;
+  }
+  acc.w = 1.0f;
+  return acc;
+}
+
+#endif /* VD_DEFORMATION_H */

@@ -1,0 +1,92 @@
+/* The rotation half-step of the flip-flop solver (VolumeDeform section 7.1, SOLVER-NOTES.md
+ * "Rotation step"): with the positions t fixed, each grid point i of the active set M gets the
+ * rotation minimising its ARAP term
+ *   Σ_{j∈N_i} |(t_i − t_j) − R_i (t̂_i − t̂_j)|²,
+ * an orthogonal Procrustes problem solved independently per point from the cross-covariance
+ *   S_i = Σ_j (t̂_i − t̂_j)(t_i − t_j)ᵀ = U Σ Vᵀ,   R_i = V Uᵀ
+ * (negating the column of V of the smallest singular value when det(V Uᵀ) < 0, which turns the
+ * best orthogonal matrix into the best rotation).
+ *
+ * Layout of the active set: compact arrays indexed by k in [0, n); neighbours[6k + d] is the
+ * compact index of the d-th 6-neighbour of point k, or −1 when that grid point is not in M.
+ * Every index that is not −1 must lie in [0, n): the list builder guarantees it (other negative
+ * values are skipped as absent). */
+#ifndef VD_PROCRUSTES_H
+#define VD_PROCRUSTES_H
+
+#include "svd3.h"
+#include "vd_compat.h"
+
+/* A neighbourhood whose second singular value is below this fraction of the first is treated as
+ * collinear (rank 1): the twist about the line would be fixed by rounding, not by data. Float
+ * positions of a few metres on a 4 mm grid already carry ~3e-5 relative rounding in t_i − t_j,
+ * so the bound sits well above that; a real neighbourhood off a line has σ2/σ1 of order 1. */
+#define VD_PROCRUSTES_RANK1_RATIO 1e-3f
+/* |S| entries at or below this (m² for metric positions) count as no information at all. */
+#define VD_PROCRUSTES_MIN_COVARIANCE 1e-30f
+
+/* The shortest-arc rotation taking unit direction a onto unit direction b: the quaternion
+ * (a × b, 1 + a·b), whose squared norm is 2(1 + a·b). Only when that vanishes to rounding
+ * (opposite directions, any axis ⊥ a is optimal) is the axis chosen: a × e, e the coordinate
+ * axis of a's smallest component, turned by π. */
+VD_INLINE VdMat3 vd_rotation_between(vd_float4 a, vd_float4 b) {
+  float w = 1.0f + vd_dot3(a, b);
+  vd_float4 axis = vd_cross3(a, b);
+  if (w <= 1e-7f) {
+    float ax = fabs(a.x), ay = fabs(a.y), az = fabs(a.z);
+    vd_float4 e = ax <= ay && ax <= az ? VD_F4(1.0f, 0.0f, 0.0f, 0.0f)
+                                       : (ay <= az ? VD_F4(0.0f, 1.0f, 0.0f, 0.0f) : VD_F4(0.0f, 0.0f, 1.0f, 0.0f));
+    axis = vd_normalize3(vd_cross3(a, e));
+    w = 0.0f;
+  }
+  return vd_quat_to_mat3(VD_F4(axis.x, axis.y, axis.z, w));
+}
+
+/* The rotation R minimising Σ_j |q_j − R p_j|² given S = Σ_j p_j q_jᵀ. Well defined for every
+ * input:
+ * - S ≈ 0 (no neighbours, or every q_j = 0: nothing constrains R) or S non-finite: identity.
+ * - S of rank 1 (all p_j on one line, e.g. a single neighbour or two opposite ones): any rotation
+ *   taking the line of the p_j onto that of the q_j is optimal; the shortest arc is returned
+ *   (no twist about the line).
+ * - Rank 2 (coplanar neighbours) and rank 3: the unique optimum.
+ * Always a proper rotation (det +1). */
+VD_INLINE VdMat3 vd_procrustes_rotation(VdMat3 s) {
+  if (!(vd_mat3_max_abs(s) > VD_PROCRUSTES_MIN_COVARIANCE) || !vd_mat3_is_finite(s)) return vd_mat3_identity();
+  VdMat3 u, v;
+  vd_float4 sigma;
+  vd_svd3(s, &u, &sigma, &v);
+  if (sigma.y <= VD_PROCRUSTES_RANK1_RATIO * sigma.x) {
+    /* S ≈ σ1 u1 v1ᵀ: p_j run along u1 and q_j along v1. */
+    return vd_rotation_between(VD_F4(u.m[0], u.m[3], u.m[6], 0.0f), VD_F4(v.m[0], v.m[3], v.m[6], 0.0f));
+  }
+  VdMat3 r = vd_mat3_mul_transpose(v, u);
+  if (vd_mat3_det(r) < 0.0f) {
+    v.m[2] = -v.m[2];
+    v.m[5] = -v.m[5];
+    v.m[8] = -v.m[8];
+    r = vd_mat3_mul_transpose(v, u);
+  }
+  return r;
+}
+
+/* Cross-covariance S_k = Σ_j (t̂_k − t̂_j)(t_k − t_j)ᵀ over the neighbours of active point k. */
+VD_INLINE VdMat3 vd_procrustes_covariance(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_float4* t,
+                                          VD_GLOBAL const vd_float4* t_hat) {
+  vd_float4 tk = t[k];
+  vd_float4 hk = t_hat[k];
+  VdMat3 s = vd_mat3_zero();
+  for (int d = 0; d < 6; ++d) {
+    int j = neighbours[6 * k + d];
+    if (j < 0) continue;
+    vd_mat3_add_outer(&s, hk - t_hat[j], tk - t[j]);
+  }
+  return s;
+}
+
+/* R_k of active point k as a unit quaternion (x, y, z, w), w >= 0. */
+VD_INLINE vd_float4 vd_procrustes_point(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_float4* t,
+                                        VD_GLOBAL const vd_float4* t_hat) {
+  return vd_mat3_to_quat(vd_procrustes_rotation(vd_procrustes_covariance(k, neighbours, t, t_hat)));
+}
+
+#endif /* VD_PROCRUSTES_H */

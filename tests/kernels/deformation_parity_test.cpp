@@ -1,0 +1,89 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+#include "core/device_ops.h"
+#include "cpu_ref/cpu_ref.h"
+#include "shared/deformation.h"
+#include "test_scenes.h"
+
+namespace vd {
+namespace {
+
+VdVolume SmallVolume() {
+  VdVolume vol{};
+  vol.dim_x = 20;
+  vol.dim_y = 16;
+  vol.dim_z = 12;
+  vol.voxel_size = 0.01f;
+  vol.origin = VD_F4(-0.1f, -0.08f, 0.5f, 1.f);
+  vol.truncation = 0.04f;
+  vol.max_weight = 64.f;
+  return vol;
+}
+
+TEST(DeformationParityTest, ResetGivesRestPositionsAndIdentityRotations) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const VdVolume vol = SmallVolume();
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
+  const size_t n = dv.num_voxels();
+  std::vector<vd_float4> pos(n), rot(n);
+  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  EXPECT_EQ(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos));
+  EXPECT_EQ(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot));
+  // Grid point (3, 2, 1) sits at origin + voxel * (3, 2, 1) with no optimisations yet.
+  const auto& p = pos[3 + vol.dim_x * (2 + vol.dim_y * 1)];
+  EXPECT_FLOAT_EQ(p.x, -0.07f);
+  EXPECT_FLOAT_EQ(p.y, -0.06f);
+  EXPECT_FLOAT_EQ(p.z, 0.51f);
+  EXPECT_EQ(p.w, 0.f);
+  EXPECT_EQ(rot[17].w, 1.f);
+}
+
+TEST(DeformationParityTest, DeformVerticesIsTrilinearAndMatchesCpu) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const VdVolume vol = SmallVolume();
+  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  std::vector<vd_float4> pos(n), rot(n);
+  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  // An affine field t_i = A t^_i + b: trilinear interpolation reproduces it exactly.
+  auto affine = [](vd_float4 p) {
+    return VD_F4(1.1f * p.x + 0.2f * p.y + 0.01f, -0.1f * p.x + 0.9f * p.y + 0.3f * p.z, p.z + 0.05f * p.x - 0.02f, 0.f);
+  };
+  for (auto& p : pos) p = affine(p);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> ux(0.f, vol.dim_x - 1.f), uy(0.f, vol.dim_y - 1.f), uz(0.f, vol.dim_z - 1.f);
+  std::vector<vd_float4> grid(5000);
+  for (auto& g : grid) g = VD_F4(ux(rng), uy(rng), uz(rng), 1.f);
+  grid[0] = VD_F4(vol.dim_x - 1.f, vol.dim_y - 1.f, vol.dim_z - 1.f, 1.f);  // The far corner.
+  std::vector<vd_float4> ref(grid.size());
+  cpu::DeformVertices(grid.data(), int(grid.size()), pos.data(), vol, ref.data());
+  for (size_t i = 0; i < grid.size(); ++i) {
+    const vd_float4 rest = VD_F4(vol.origin.x + vol.voxel_size * grid[i].x, vol.origin.y + vol.voxel_size * grid[i].y,
+                                 vol.origin.z + vol.voxel_size * grid[i].z, 0.f);
+    const vd_float4 want = affine(rest);
+    ASSERT_NEAR(ref[i].x, want.x, 1e-5f);
+    ASSERT_NEAR(ref[i].y, want.y, 1e-5f);
+    ASSERT_NEAR(ref[i].z, want.z, 1e-5f);
+  }
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
+  DeviceMesh m;
+  m.positions_grid = test::ToDevice(ctx, grid);
+  auto out = ctx->Alloc<vd_float4>(grid.size());
+  ASSERT_TRUE(out.ok());
+  m.positions = std::move(out).value();
+  m.num_vertices = grid.size();
+  ASSERT_TRUE(ops.DeformVertices(dv, &m).ok());
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, m.positions, grid.size())), test::Flatten(ref), 1e-6f, 1e-6f));
+}
+
+}  // namespace
+}  // namespace vd
