@@ -6,58 +6,6 @@
 #include "server_options.h"
 #include "vd/common/log.h"
 
-namespace vd {
-
-void ServerOptions::Register(FlagParser* f) {
-  f->AddString("input", &input,
-               "Offline mode: process SOURCE (openni2[:URI], oni:FILE, folder:DIR, synthetic:NAME) without LCM");
-  f->AddString("intrinsics", &intrinsics, "fx,fy,cx,cy overriding the source's intrinsics (offline mode)");
-  f->AddFloat("depth-scale", &depth_scale, "Raw depth units per metre overriding the source's (offline mode; 0 = source's)");
-  f->AddFloat("voxel-size", &voxel_size, "Grid spacing in metres");
-  f->AddFloat("min-depth", &min_depth, "Depth below this many metres is ignored");
-  f->AddFloat("max-depth", &max_depth, "Depth beyond this many metres is ignored");
-  f->AddFloat("max-grid-mb", &max_grid_mb,
-              "Memory the grid may use, MB (12 bytes per point with --rigid-only, 44 with the deformation field)");
-  f->AddInt("count", &count, "Offline mode: process at most N frames (-1 = all)");
-  f->AddInt("start", &start, "Offline mode: first frame index");
-  f->AddInt("stride", &stride, "Offline mode: use every n-th frame");
-  f->AddString("save-dir", &save_dir,
-               "Offline mode: write frame-%06d.mesh.ply (live, camera coordinates), frame-%06d.canonical.ply and "
-               "frame-%06d.pose.txt (camera-to-world) per frame");
-  f->AddString("stats-json", &stats_json, "Offline mode: write per-stage timing statistics, fps and peak memory");
-  f->AddBool("rigid-only", &rigid_only,
-             "Rigid tracking and fusion only, without a deformation field. (The non-rigid solve is not in this "
-             "build yet: without this flag the field is allocated and applied but stays the identity.)");
-  f->AddBool("no-bilateral", &no_bilateral, "Track on the unfiltered depth");
-  f->AddString("device", &device, "OpenCL device: index (see --list-devices) or name substring; default first GPU, else CPU");
-  f->AddBool("list-devices", &list_devices, "List the OpenCL devices and exit");
-  f->AddString("lcm-url", &lcm_url, "LCM URL (default: $LCM_DEFAULT_URL, else host-only multicast with a 4 MB receive buffer)");
-  f->AddString("snapshot-dir", &snapshot_dir, "Directory SAVE_SNAPSHOT commands write into (paths cannot leave it)");
-  f->AddBool("quiet", &quiet, "Only warnings and errors");
-}
-
-EngineParams ServerOptions::ToEngineParams() const {
-  EngineParams p;
-  p.voxel_size = float(voxel_size);
-  p.min_depth = float(min_depth);
-  p.max_depth = float(max_depth);
-  p.max_grid_mb = max_grid_mb;
-  p.rigid_only = rigid_only;
-  p.bilateral = !no_bilateral;
-  return p;
-}
-
-SourceOptions ServerOptions::ToSourceOptions() const {
-  SourceOptions s;
-  s.intrinsics = intrinsics;
-  s.depth_scale = float(depth_scale);
-  s.start = start;
-  s.count = count;
-  s.stride = int(stride);
-  return s;
-}
-
-}  // namespace vd
 
 int main(int argc, char** argv) {
   vd::ServerOptions options;

@@ -1,0 +1,175 @@
+// The server node driven in-process over LCM's memq:// provider: bad frames are rejected with a
+// reason and never reach the model, good frames are processed and answered with meshes and
+// status, stale frames are ignored, snapshot paths stay inside the snapshot directory.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+
+#include "node.h"
+#include "ocl/ocl.h"
+#include "vd/capture/synthetic.h"
+
+namespace vd {
+namespace {
+
+struct Inbox {
+  std::vector<vdeform::server_status_t> status;
+  std::vector<vdeform::mesh_t> meshes;
+  void OnStatus(const lcm::ReceiveBuffer*, const std::string&, const vdeform::server_status_t* m) { status.push_back(*m); }
+  void OnMesh(const lcm::ReceiveBuffer*, const std::string&, const vdeform::mesh_t* m) { meshes.push_back(*m); }
+};
+
+int64_t RejectCount(const vdeform::server_status_t& s, const std::string& reason) {
+  for (int i = 0; i < s.num_reject_reasons; ++i)
+    if (s.reject_reason[i] == reason) return s.reject_count[i];
+  return 0;
+}
+
+class NodeTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    auto devices = ocl::ListDevices();
+    if (!devices.ok() || devices->empty()) GTEST_SKIP() << "no OpenCL device";
+    ASSERT_TRUE(lcm_.good());
+    options_.voxel_size = 0.008;
+    options_.snapshot_dir = testing::TempDir() + "/vd_node_snapshots";
+    std::filesystem::remove_all(options_.snapshot_dir);
+    auto engine = Engine::Create(options_.ToEngineParams(), "");
+    ASSERT_TRUE(engine.ok()) << engine.status().ToString();
+    node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value());
+    lcm_.subscribe(kFrameChannel, &Node::OnFrame, node_.get());
+    lcm_.subscribe(kControlChannel, &Node::OnControl, node_.get());
+    lcm_.subscribe(kStatusChannel, &Inbox::OnStatus, &inbox_);
+    lcm_.subscribe(kMeshChannel, &Inbox::OnMesh, &inbox_);
+    SyntheticOptions so;
+    so.noise = false;
+    auto scene = MakeSyntheticScene("tube", so);
+    ASSERT_TRUE(scene.ok());
+    frame_ = (*scene)->Render(0);
+    frame_.source_id = "test";
+  }
+  void Pump() {
+    while (lcm_.handleTimeout(0) > 0) {
+    }
+  }
+  vdeform::rgbd_frame_t Message(int64_t seq) {
+    RgbdFrame f = frame_;
+    f.seq = seq;
+    auto m = FrameToMessage(f, FrameEncodeOptions());
+    EXPECT_TRUE(m.ok()) << m.status().ToString();
+    return *m;
+  }
+  const vdeform::server_status_t& Status() {
+    node_->PublishStatusNow();
+    Pump();
+    return inbox_.status.back();
+  }
+
+  lcm::LCM lcm_{"memq://"};
+  ServerOptions options_;
+  std::unique_ptr<Node> node_;
+  Inbox inbox_;
+  RgbdFrame frame_;
+};
+
+TEST_F(NodeTest, RejectsBadFramesByReasonAndKeepsServing) {
+  // Random bytes, a truncated message, NaN intrinsics, an unknown encoding, a wrong size.
+  const std::vector<uint8_t> junk(1000, 0xAB);
+  lcm_.publish(kFrameChannel, junk.data(), int(junk.size()));
+  auto good = Message(0);
+  std::vector<uint8_t> bytes(good.getEncodedSize());
+  good.encode(bytes.data(), 0, int(bytes.size()));
+  lcm_.publish(kFrameChannel, bytes.data(), int(bytes.size() / 2));
+  auto nan = Message(1);
+  nan.fx = NAN;
+  lcm_.publish(kFrameChannel, &nan);
+  auto enc = Message(2);
+  enc.depth_encoding = 42;
+  lcm_.publish(kFrameChannel, &enc);
+  auto size = Message(3);
+  size.width = 320;
+  lcm_.publish(kFrameChannel, &size);
+  Pump();
+  EXPECT_FALSE(node_->RunOnce()) << "no frame may reach the engine";
+  const auto& st = Status();
+  EXPECT_EQ(st.frames_received, 5);
+  EXPECT_EQ(st.frames_rejected, 5);
+  EXPECT_EQ(st.frames_processed, 0);
+  EXPECT_EQ(RejectCount(st, "malformed_message"), 2);
+  EXPECT_EQ(RejectCount(st, "bad_intrinsics"), 1);
+  EXPECT_EQ(RejectCount(st, "unknown_encoding"), 1);
+  EXPECT_EQ(RejectCount(st, "wrong_size"), 1);
+  EXPECT_EQ(int(st.state), int(vdeform::server_status_t::STATE_IDLE));
+
+  // A good frame is then processed and answered with a mesh and a status naming it.
+  auto ok = Message(7);
+  lcm_.publish(kFrameChannel, &ok);
+  Pump();
+  EXPECT_TRUE(node_->RunOnce());
+  Pump();
+  ASSERT_FALSE(inbox_.meshes.empty());
+  EXPECT_EQ(inbox_.meshes.back().seq, 7);
+  EXPECT_GT(inbox_.meshes.back().num_triangles, 1000);
+  const auto& after = inbox_.status.back();
+  EXPECT_EQ(after.frames_processed, 1);
+  EXPECT_EQ(after.last_processed_seq, 7);
+  EXPECT_EQ(after.last_source_id, "test");
+  EXPECT_EQ(int(after.state), int(vdeform::server_status_t::STATE_TRACKING));
+
+  // The same or an older sequence number again is ignored (a re-send), not processed twice.
+  lcm_.publish(kFrameChannel, &ok);
+  auto old = Message(6);
+  lcm_.publish(kFrameChannel, &old);
+  Pump();
+  EXPECT_FALSE(node_->RunOnce());
+  EXPECT_EQ(Status().frames_processed, 1);
+}
+
+TEST_F(NodeTest, NewestFrameWinsAndDropsAreCounted) {
+  for (int64_t s = 0; s < 3; ++s) {
+    auto m = Message(s);
+    lcm_.publish(kFrameChannel, &m);
+  }
+  Pump();
+  EXPECT_TRUE(node_->RunOnce());
+  const auto& st = Status();
+  EXPECT_EQ(st.frames_dropped, 2);
+  EXPECT_EQ(st.frames_processed, 1);
+  EXPECT_EQ(st.last_processed_seq, 2);
+}
+
+TEST_F(NodeTest, SnapshotStaysInsideItsDirectoryAndMeshRequestRepublishes) {
+  auto m = Message(0);
+  lcm_.publish(kFrameChannel, &m);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  vdeform::control_t c;
+  c.utime = 0;
+  c.command = vdeform::control_t::COMMAND_SAVE_SNAPSHOT;
+  c.auth_size = 0;
+  for (const char* path : {"../escape", "/tmp/abs", "snap1"}) {
+    c.path = path;
+    lcm_.publish(kControlChannel, &c);
+  }
+  Pump();
+  node_->RunOnce();
+  EXPECT_FALSE(std::filesystem::exists(options_.snapshot_dir + "/../escape"));
+  EXPECT_TRUE(std::filesystem::exists(options_.snapshot_dir + "/snap1/live.ply"));
+  EXPECT_TRUE(std::filesystem::exists(options_.snapshot_dir + "/snap1/volume.bin"));
+  EXPECT_FALSE(std::filesystem::exists(options_.snapshot_dir + "/snap1/volume.bin.tmp"));
+
+  const size_t before = inbox_.meshes.size();
+  c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
+  c.path = "";
+  lcm_.publish(kControlChannel, &c);
+  Pump();
+  node_->Tick();
+  Pump();
+  // Live and canonical meshes are sent again for a viewer that joined late.
+  ASSERT_GE(inbox_.meshes.size(), before + 2);
+  EXPECT_EQ(int(inbox_.meshes.back().kind), int(vdeform::mesh_t::KIND_CANONICAL));
+}
+
+}  // namespace
+}  // namespace vd
