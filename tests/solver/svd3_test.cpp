@@ -106,6 +106,20 @@ TEST(Svd3Test, MatchesEigenOnStructuredSpectra) {
       if (HasFailure()) return;
     }
   }
+  // Outer products formed in float (rank 1 and 2 up to the rounding of the products), some with
+  // an axis-aligned left factor as grid neighbours give: Jacobi then meets column pairs whose norms
+  // are ~1e-20 of the largest, where d² + 4γ² would be denormal.
+  std::normal_distribution<float> g(0.f, 1.f);
+  for (int i = 0; i < 3000; ++i) {
+    VdMat3 s = vd_mat3_zero();
+    for (int r = 0; r <= i % 2; ++r) {
+      vd_float4 p = VD_F4(g(rng), g(rng), g(rng), 0.f);
+      if (i % 3 == 0) p = (r == 0) ? VD_F4(0.f, p.y, 0.f, 0.f) : VD_F4(0.f, 0.f, p.z, 0.f);
+      vd_mat3_add_outer(&s, p, VD_F4(g(rng), g(rng), g(rng), 0.f));
+    }
+    ExpectGoodSvd(ToEigen(s), 1e-5, &worst_sigma, &worst_rec);
+    if (HasFailure()) return;
+  }
   // Axis-aligned and sparse inputs, where Jacobi meets exact zeros.
   const Eigen::Matrix3d sparse[] = {Eigen::Matrix3d::Identity(), -Eigen::Matrix3d::Identity(),
                                     Eigen::Vector3d(0, 3, -2).asDiagonal(), Eigen::Matrix3d::Zero(),

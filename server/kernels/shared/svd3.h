@@ -140,14 +140,19 @@ VD_INLINE void vd_svd3_jacobi_pair(VdMat3* b, VdMat3* v, int p, int q) {
     beta += bq * bq;
     gamma += bp * bq;
   }
-  /* cot 2θ = (beta − alpha) / (2 gamma) = zeta; t = tan θ is the smaller root of
-   * t² + 2·zeta·t − 1 = 0 (|θ| <= π/4), sign(zeta) / (|zeta| + sqrt(1 + zeta²)), here multiplied
-   * through by |2 gamma| so that gamma = 0 needs no special case and one division is saved. */
+  /* cot 2θ = (beta − alpha) / (2 gamma); the smaller angle (|θ| <= π/4) has, with d = beta − alpha
+   * and h = sqrt(d² + 4 gamma²) = |d| / |cos 2θ|, c² = (h + |d|) / (2h) and
+   * tan θ = sign(d)·2 gamma / (h + |d|). No difference cancels, gamma = 0 needs no special case,
+   * and the chain is sqrt -> div -> sqrt: the sweeps are latency-bound, not flop-bound.
+   * c² + s² = 1 holds as long as h² = d² + 4 gamma² is not denormal, so pairs with h <= 1e-18 are
+   * left alone: A is scaled to entries <= 1 (σ1 >= 1), so both columns are then below 1e-9·σ1,
+   * zero at float resolution. */
   float d = beta - alpha;
-  float den = fabs(d) + sqrt(d * d + 4.0f * gamma * gamma);
-  float t = den > 0.0f ? (d >= 0.0f ? 2.0f * gamma : -2.0f * gamma) / den : 0.0f;
-  float c = 1.0f / sqrt(1.0f + t * t);
-  float s = t * c;
+  float h = sqrt(d * d + 4.0f * gamma * gamma);
+  float u = fabs(d) + h;
+  int rotate = h > 1e-18f;
+  float c = rotate ? sqrt(u / (2.0f * h)) : 1.0f;
+  float s = rotate ? (d >= 0.0f ? 2.0f * gamma : -2.0f * gamma) / u * c : 0.0f;
   vd_mat3_rotate_columns(b, p, q, c, s);
   vd_mat3_rotate_columns(v, p, q, c, s);
 }
