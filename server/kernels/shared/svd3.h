@@ -6,8 +6,8 @@
  * the symmetric AᵀA (giving V), the columns of AV are sorted by decreasing norm, and a Givens QR
  * of AV gives U (and the singular values on the diagonal of R). Two choices differ from the
  * paper, both for accuracy in single precision:
- * - The Jacobi rotations are exact (the classical tan θ root, not the approximate quaternion
- *   Givens angles), and each rotation reads the entries of AᵀA from the current columns of AV
+ * - The Jacobi rotations are exact (the closed-form angle that zeroes the pair, not the
+ *   approximate quaternion Givens angles), and each rotation reads the entries of AᵀA from the current columns of AV
  *   (one-sided Jacobi) instead of updating a stored AᵀA. Forming AᵀA explicitly squares the
  *   condition number: columns belonging to a small singular value would stay coupled at about
  *   eps·σ1²/σ2, and dropping that coupling would cost ~1e-4·σ1 of reconstruction error for
