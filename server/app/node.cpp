@@ -48,7 +48,12 @@ int RunNode(const ServerOptions& options) {
                  url.c_str());
     return 1;
   }
-  auto engine = Engine::Create(options.ToEngineParams(), options.device);
+  auto params = options.ToEngineParams();
+  if (!params.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", params.status().message().c_str());
+    return 2;
+  }
+  auto engine = Engine::Create(*params, options.device);
   if (!engine.ok()) {
     std::fprintf(stderr, "vdeform-server: %s\n", engine.status().ToString().c_str());
     return 1;

@@ -53,7 +53,12 @@ int RunOffline(const ServerOptions& options) {
     std::filesystem::create_directories(options.save_dir, ec);
     if (ec) return fail(Unavailable("cannot create --save-dir '" + options.save_dir + "': " + ec.message()));
   }
-  auto engine = Engine::Create(options.ToEngineParams(), options.device);
+  auto params = options.ToEngineParams();
+  if (!params.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", params.status().message().c_str());
+    return 2;
+  }
+  auto engine = Engine::Create(*params, options.device);
   if (!engine.ok()) return fail(engine.status());
   VD_LOG_INFO << "OpenCL device: " << (*engine)->DeviceDescription();
 

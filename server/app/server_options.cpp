@@ -1,6 +1,8 @@
 // vdeform-server's flags and their translation into engine and source parameters.
 #include "server_options.h"
 
+#include <cstdio>
+
 namespace vd {
 
 void ServerOptions::Register(FlagParser* f) {
@@ -13,6 +15,10 @@ void ServerOptions::Register(FlagParser* f) {
   f->AddFloat("max-depth", &max_depth, "Depth beyond this many metres is ignored");
   f->AddFloat("max-grid-mb", &max_grid_mb,
               "Memory the grid may use, MB (12 bytes per point with --rigid-only, 44 with the deformation field)");
+  f->AddFloat("volume-margin", &volume_margin,
+              "Space added around the first frame's points when placing the grid, metres (larger for a moving "
+              "camera that will see more of the scene)");
+  f->AddString("icp-iterations", &icp_iterations, "Rigid ICP iterations per pyramid level, finest first");
   f->AddInt("count", &count, "Offline mode: process at most N frames (-1 = all)");
   f->AddInt("start", &start, "Offline mode: first frame index");
   f->AddInt("stride", &stride, "Offline mode: use every n-th frame");
@@ -31,12 +37,18 @@ void ServerOptions::Register(FlagParser* f) {
   f->AddBool("quiet", &quiet, "Only warnings and errors");
 }
 
-EngineParams ServerOptions::ToEngineParams() const {
+StatusOr<EngineParams> ServerOptions::ToEngineParams() const {
   EngineParams p;
+  int a = 0, b = 0, c = 0;
+  char tail = 0;
+  if (std::sscanf(icp_iterations.c_str(), "%d,%d,%d%c", &a, &b, &c, &tail) != 3)
+    return InvalidArgument("--icp-iterations expects three counts like 10,5,4, got '" + icp_iterations + "'");
+  p.icp_iterations = {a, b, c};
   p.voxel_size = float(voxel_size);
   p.min_depth = float(min_depth);
   p.max_depth = float(max_depth);
   p.max_grid_mb = max_grid_mb;
+  p.volume_margin = float(volume_margin);
   p.rigid_only = rigid_only;
   p.bilateral = !no_bilateral;
   return p;

@@ -17,6 +17,9 @@ struct ServerOptions {
   double min_depth = 0.2;
   double max_depth = 3.5;
   double max_grid_mb = 600.0;
+  double volume_margin = 0.10;
+  // ICP iterations per pyramid level, finest first ("10,5,4").
+  std::string icp_iterations = "10,5,4";
   int64_t count = -1;
   int64_t start = 0;
   int64_t stride = 1;
@@ -33,7 +36,8 @@ struct ServerOptions {
   bool quiet = false;
 
   void Register(FlagParser* flags);
-  EngineParams ToEngineParams() const;
+  // Fails on malformed --icp-iterations.
+  StatusOr<EngineParams> ToEngineParams() const;
   SourceOptions ToSourceOptions() const;
 };
 

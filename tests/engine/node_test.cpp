@@ -35,7 +35,9 @@ class NodeTest : public ::testing::Test {
     options_.voxel_size = 0.008;
     options_.snapshot_dir = testing::TempDir() + "/vd_node_snapshots";
     std::filesystem::remove_all(options_.snapshot_dir);
-    auto engine = Engine::Create(options_.ToEngineParams(), "");
+    auto params = options_.ToEngineParams();
+    ASSERT_TRUE(params.ok());
+    auto engine = Engine::Create(*params, "");
     ASSERT_TRUE(engine.ok()) << engine.status().ToString();
     node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value());
     lcm_.subscribe(kFrameChannel, &Node::OnFrame, node_.get());
