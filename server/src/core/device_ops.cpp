@@ -1,5 +1,7 @@
 #include "core/device_ops.h"
 
+#include <algorithm>
+
 #include "core/mc_table.h"
 #include "shared/raster.h"
 
@@ -142,6 +144,26 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
 
 Status DeviceOps::GridToWorld(const VdVolume& vol, DeviceMesh* mesh) {
   return ctx_->Run("vd_grid_to_world", mesh->num_vertices, mesh->positions_grid, vol, mesh->positions);
+}
+
+Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
+  const size_t n = v.num_voxels(), rows = v.num_rows();
+  if (mc_codes_.size() < n) return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on this grid");
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_surface_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_member_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_count_, rows));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_offset_, rows + 1));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_surface", rows, mc_codes_, mc_tri_counts_, v.vol, active_surface_));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_dilate", rows, active_surface_, v.vol, active_member_, active_row_count_));
+  uint32_t total = 0;
+  VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
+  out->count = total;
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_compact", rows, active_member_, active_row_offset_, v.vol, out->list,
+                               out->compact));
+  return ctx_->Run("vd_active_neighbours", total, out->list, out->compact, v.vol, out->neighbours);
 }
 
 Status DeviceOps::DeformVertices(const DeviceVolume& v, DeviceMesh* mesh) {

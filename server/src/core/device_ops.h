@@ -46,6 +46,17 @@ struct DeviceRaster {
   ocl::Buffer<vd_float4> bary;
 };
 
+// The active set M (grid points of the cells the isosurface crosses plus their one-ring).
+struct DeviceActiveSet {
+  // Grid indices of the members, in row-major grid order.
+  ocl::Buffer<int32_t> list;
+  // Dense grid -> compact index map, -1 outside M.
+  ocl::Buffer<int32_t> compact;
+  // 6 compact neighbour indices per member (-x, +x, -y, +y, -z, +z), -1 where not in M.
+  ocl::Buffer<int32_t> neighbours;
+  size_t count = 0;
+};
+
 class DeviceOps {
  public:
   explicit DeviceOps(ocl::Context* ctx) : ctx_(ctx) {}
@@ -75,6 +86,8 @@ class DeviceOps {
   Status GridToWorld(const VdVolume& vol, DeviceMesh* mesh);
   // positions = S(positions_grid) through the grid's deformation field.
   Status DeformVertices(const DeviceVolume& v, DeviceMesh* mesh);
+  // M from the cell codes of the last MarchingCubes() call on v.
+  Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out);
   Status Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out);
   Status IcpReduce(const ocl::Buffer<vd_float4>& vmap, const ocl::Buffer<vd_float4>& nmap,
                    const ocl::Buffer<vd_float4>& model_v, const ocl::Buffer<vd_float4>& model_n, int n,
@@ -97,6 +110,11 @@ class DeviceOps {
   std::vector<ocl::Buffer<uint32_t>> scan_sums_;
   std::vector<ocl::Buffer<uint32_t>> scan_offsets_;
   ocl::Buffer<float> icp_partials_;
+  // Active-set scratch: surface flags, membership flags, per-row counts and offsets.
+  ocl::Buffer<uint8_t> active_surface_;
+  ocl::Buffer<uint8_t> active_member_;
+  ocl::Buffer<uint32_t> active_row_count_;
+  ocl::Buffer<uint32_t> active_row_offset_;
   std::vector<float> icp_host_;
 };
 

@@ -3,6 +3,7 @@
 #include <numeric>
 
 #include "core/mc_table.h"
+#include "shared/active_set.h"
 #include "shared/deformation.h"
 #include "shared/marching_cubes.h"
 #include "shared/preprocess.h"
@@ -108,7 +109,37 @@ McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* col
       mesh.triangles[3 * static_cast<size_t>(tri_offset[i]) + k] =
           vd_mc_edge_vertex(masks.data(), vert_offset.data(), vol, x, y, z, row[k]);
   }
+  mesh.codes = std::move(codes);
   return mesh;
+}
+
+ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol) {
+  const McTable& table = GetMcTable();
+  const int n = vol.dim_x * vol.dim_y * vol.dim_z;
+  std::vector<uint8_t> surface(n), member(n);
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    const int x = i % vol.dim_x, yz = i / vol.dim_x;
+    surface[i] = vd_active_surface_point(codes, table.counts.data(), vol, x, yz % vol.dim_y, yz / vol.dim_y);
+  }
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) {
+    const int x = i % vol.dim_x, yz = i / vol.dim_x;
+    member[i] = vd_active_dilate_point(surface.data(), vol, x, yz % vol.dim_y, yz / vol.dim_y);
+  }
+  ActiveSet out;
+  out.compact.assign(n, -1);
+  for (int i = 0; i < n; ++i) {
+    if (!member[i]) continue;
+    out.compact[i] = int32_t(out.list.size());
+    out.list.push_back(i);
+  }
+  out.neighbours.resize(6 * out.list.size());
+  for (size_t k = 0; k < out.list.size(); ++k) {
+    const int i = out.list[k], x = i % vol.dim_x, yz = i / vol.dim_x;
+    vd_active_neighbours_of(out.compact.data(), vol, x, yz % vol.dim_y, yz / vol.dim_y, &out.neighbours[6 * k]);
+  }
+  return out;
 }
 
 void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32_t* triangles, int num_triangles,

@@ -30,8 +30,18 @@ struct McMesh {
   std::vector<vd_float4> normals;
   std::vector<uint32_t> colors;
   std::vector<int32_t> triangles;
+  // Cell codes (bit 8 valid, bits 0..7 cube index) per grid point, for the active set.
+  std::vector<uint16_t> codes;
 };
 McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* color, VdVolume vol);
+
+struct ActiveSet {
+  std::vector<int32_t> list;
+  std::vector<int32_t> compact;
+  std::vector<int32_t> neighbours;
+};
+// Independent of the device's scan: a sequential compaction over the same per-point tests.
+ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol);
 
 struct RasterMaps {
   std::vector<uint32_t> depth_bits;

@@ -1,0 +1,53 @@
+#include "shared/active_set.h"
+
+/* One work item per grid row (fixed y, z). */
+__kernel void vd_active_surface(__global const ushort* codes, __global const uchar* tri_counts, VdVolume vol,
+                                __global uchar* surface, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int yz = get_global_id(0);
+  int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  for (int x = 0; x < vol.dim_x; ++x)
+    surface[yz * vol.dim_x + x] = vd_active_surface_point(codes, tri_counts, vol, x, y, z);
+}
+
+__kernel void vd_active_dilate(__global const uchar* surface, VdVolume vol, __global uchar* member,
+                               __global uint* row_count, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int yz = get_global_id(0);
+  int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  uint n = 0u;
+  for (int x = 0; x < vol.dim_x; ++x) {
+    uchar m = vd_active_dilate_point(surface, vol, x, y, z);
+    member[yz * vol.dim_x + x] = m;
+    n += m;
+  }
+  row_count[yz] = n;
+}
+
+/* Writes the compact list (grid indices in row-major order) and the dense grid -> compact map. */
+__kernel void vd_active_compact(__global const uchar* member, __global const uint* row_offset, VdVolume vol,
+                                __global int* list, __global int* compact, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int yz = get_global_id(0);
+  uint out = row_offset[yz];
+  for (int x = 0; x < vol.dim_x; ++x) {
+    int i = yz * vol.dim_x + x;
+    if (member[i]) {
+      list[out] = i;
+      compact[i] = (int)out;
+      ++out;
+    } else {
+      compact[i] = -1;
+    }
+  }
+}
+
+/* One work item per active point. */
+__kernel void vd_active_neighbours(__global const int* list, __global const int* compact, VdVolume vol,
+                                   __global int* neighbours, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  int i = list[k];
+  int x = i % vol.dim_x, yz = i / vol.dim_x;
+  vd_active_neighbours_of(compact, vol, x, yz % vol.dim_y, yz / vol.dim_y, neighbours + 6 * k);
+}

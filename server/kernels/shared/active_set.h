@@ -1,0 +1,51 @@
+/* The active set M of VolumeDeform (section 4): grid points of the cells the isosurface crosses
+ * (cells that emit marching-cubes triangles) plus their one-ring (6-neighbourhood). Built with
+ * gathers only (no write races): pass 1 flags surface points, pass 2 dilates, then per-row counts
+ * are scanned and each row writes its compact indices. */
+#ifndef VD_ACTIVE_SET_H
+#define VD_ACTIVE_SET_H
+
+#include "marching_cubes.h"
+
+/* 1 when grid point (x, y, z) is a corner of a cell with triangles. codes: marching-cubes cell
+ * codes; tri_counts: triangles per cube index. */
+VD_INLINE vd_uchar vd_active_surface_point(VD_GLOBAL const vd_ushort* codes, VD_GLOBAL const vd_uchar* tri_counts,
+                                           VdVolume vol, int x, int y, int z) {
+  for (int k = 0; k < 8; ++k) {
+    int cx = x - (k & 1), cy = y - ((k >> 1) & 1), cz = z - ((k >> 2) & 1);
+    if (cx < 0 || cy < 0 || cz < 0) continue;
+    vd_uint code = vd_mc_code_at(codes, vol, cx, cy, cz);
+    if ((code & VD_MC_VALID) && tri_counts[code & 255u] > 0) return 1;
+  }
+  return 0;
+}
+
+/* 1 when grid point (x, y, z) is a surface point or a 6-neighbour of one. */
+VD_INLINE vd_uchar vd_active_dilate_point(VD_GLOBAL const vd_uchar* surface, VdVolume vol, int x, int y, int z) {
+  int i = vd_grid_index(vol, x, y, z);
+  if (surface[i]) return 1;
+  if (x > 0 && surface[i - 1]) return 1;
+  if (x < vol.dim_x - 1 && surface[i + 1]) return 1;
+  if (y > 0 && surface[i - vol.dim_x]) return 1;
+  if (y < vol.dim_y - 1 && surface[i + vol.dim_x]) return 1;
+  int plane = vol.dim_x * vol.dim_y;
+  if (z > 0 && surface[i - plane]) return 1;
+  if (z < vol.dim_z - 1 && surface[i + plane]) return 1;
+  return 0;
+}
+
+/* Compact indices of the 6-neighbours of grid point (x, y, z) (-1 where outside M or the grid),
+ * in the order -x, +x, -y, +y, -z, +z. compact: dense grid -> compact index map (-1 outside M). */
+VD_INLINE void vd_active_neighbours_of(VD_GLOBAL const int* compact, VdVolume vol, int x, int y, int z,
+                                    VD_GLOBAL int* out) {
+  int i = vd_grid_index(vol, x, y, z);
+  int plane = vol.dim_x * vol.dim_y;
+  out[0] = x > 0 ? compact[i - 1] : -1;
+  out[1] = x < vol.dim_x - 1 ? compact[i + 1] : -1;
+  out[2] = y > 0 ? compact[i - vol.dim_x] : -1;
+  out[3] = y < vol.dim_y - 1 ? compact[i + vol.dim_x] : -1;
+  out[4] = z > 0 ? compact[i - plane] : -1;
+  out[5] = z < vol.dim_z - 1 ? compact[i + plane] : -1;
+}
+
+#endif /* VD_ACTIVE_SET_H */
