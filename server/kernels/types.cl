@@ -1,3 +1,4 @@
+#include "shared/correspondence.h"
 #include "shared/icp.h"
 
 /* Reports the device's view of the shared struct sizes, checked against the host's in a test. */
@@ -8,4 +9,6 @@ __kernel void vd_type_sizes(__global int* out, int vd_items) {
   out[2] = (int)sizeof(VdVolume);
   out[3] = (int)sizeof(VdIcpParams);
   out[4] = (int)sizeof(float4);
+  out[5] = (int)sizeof(VdCorrespondence);
+  out[6] = (int)sizeof(VdCorrParams);
 }

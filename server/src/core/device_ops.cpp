@@ -146,6 +146,15 @@ Status DeviceOps::GridToWorld(const VdVolume& vol, DeviceMesh* mesh) {
   return ctx_->Run("vd_grid_to_world", mesh->num_vertices, mesh->positions_grid, vol, mesh->positions);
 }
 
+Status DeviceOps::Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
+                                  const ocl::Buffer<vd_float4>& obs_n, const DeviceMesh& mesh,
+                                  const VdCorrParams& params, ocl::Buffer<VdCorrespondence>& out) {
+  const size_t n = static_cast<size_t>(model.cam.width) * model.cam.height;
+  if (out.size() < n) return OutOfRange("correspondence buffer smaller than the image");
+  return ctx_->Run("vd_correspondences", n, model.vertex, model.normal, model.ids, model.bary, obs_v, obs_n,
+                   mesh.positions_grid, mesh.triangles, params, out);
+}
+
 Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
   const size_t n = v.num_voxels(), rows = v.num_rows();
   if (mc_codes_.size() < n) return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on this grid");

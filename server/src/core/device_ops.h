@@ -4,6 +4,7 @@
 #include <cstdint>
 
 #include "ocl/ocl.h"
+#include "shared/correspondence.h"
 #include "shared/icp.h"
 #include "shared/vd_types.h"
 
@@ -86,6 +87,11 @@ class DeviceOps {
   Status GridToWorld(const VdVolume& vol, DeviceMesh* mesh);
   // positions = S(positions_grid) through the grid's deformation field.
   Status DeformVertices(const DeviceVolume& v, DeviceMesh* mesh);
+  // Per-pixel correspondences between the rasterised deformed mesh (`model`, rendered at the
+  // current camera) and the observed maps; canonical positions from mesh.positions_grid.
+  Status Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
+                         const ocl::Buffer<vd_float4>& obs_n, const DeviceMesh& mesh, const VdCorrParams& params,
+                         ocl::Buffer<VdCorrespondence>& out);
   // M from the cell codes of the last MarchingCubes() call on v.
   Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out);
   Status Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out);

@@ -162,6 +162,15 @@ void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32
                             &out->normal[i], &out->bary[i]);
 }
 
+void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_float4* obs_n,
+                     const vd_float4* canonical_grid, const int32_t* triangles, VdCorrParams params, int n,
+                     VdCorrespondence* out) {
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i)
+    out[i] = vd_correspondence_pixel(i, model.vertex.data(), model.normal.data(), model.ids.data(), model.bary.data(),
+                                     obs_v, obs_n, canonical_grid, triangles, params);
+}
+
 void IcpReduce(const vd_float4* vmap, const vd_float4* nmap, const vd_float4* model_v, const vd_float4* model_n,
                int n, VdIcpParams params, double acc[VD_ICP_ACC]) {
   for (int k = 0; k < VD_ICP_ACC; ++k) acc[k] = 0.0;

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "shared/correspondence.h"
 #include "shared/icp.h"
 #include "shared/vd_types.h"
 
@@ -52,6 +53,10 @@ struct RasterMaps {
 };
 void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32_t* triangles, int num_triangles,
                VdPose world_to_cam, VdCamera cam, RasterMaps* out);
+
+void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_float4* obs_n,
+                     const vd_float4* canonical_grid, const int32_t* triangles, VdCorrParams params, int n,
+                     VdCorrespondence* out);
 
 // Sums the ICP normal equations over all pixels in double precision.
 void IcpReduce(const vd_float4* vmap, const vd_float4* nmap, const vd_float4* model_v, const vd_float4* model_n,
