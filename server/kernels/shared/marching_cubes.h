@@ -15,8 +15,6 @@
 /* Cell codes: bit 8 = valid, bits 0..7 = cube index. */
 #define VD_MC_VALID 0x100u
 
-VD_INLINE int vd_grid_index(VdVolume vol, int x, int y, int z) { return x + vol.dim_x * (y + vol.dim_y * z); }
-
 VD_INLINE vd_uint vd_mc_cell_code(VD_GLOBAL const float* tsdf, VD_GLOBAL const float* weight, VdVolume vol, int x,
                                   int y, int z) {
   if (x >= vol.dim_x - 1 || y >= vol.dim_y - 1 || z >= vol.dim_z - 1) return 0u;

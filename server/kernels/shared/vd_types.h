@@ -31,6 +31,9 @@ typedef struct {
   int pad0, pad1;
 } VdVolume;
 
+/* Linear index of grid point (x, y, z). */
+VD_INLINE int vd_grid_index(VdVolume vol, int x, int y, int z) { return x + vol.dim_x * (y + vol.dim_y * z); }
+
 VD_INLINE vd_float4 vd_pose_apply(VdPose T, vd_float4 p) {
   return VD_F4(T.r0.x * p.x + T.r0.y * p.y + T.r0.z * p.z + T.r0.w,
                T.r1.x * p.x + T.r1.y * p.y + T.r1.z * p.z + T.r1.w,

@@ -1,0 +1,206 @@
+/* Position step of the flip-flop solver (VolumeDeform section 7.1; SOLVER-NOTES.md): with the
+ * rotations fixed, the positions x of the active set M solve
+ *   (2 w_r L + w_d B^T B + lambda I) x = w_r sum_j (R_k + R_j)(t^_k - t^_j)
+ *                                        + w_d sum_c alpha_ck w_c n_c (n_c . p_c) + lambda x_prev
+ * with L the graph Laplacian of M's 6-neighbourhood and B the point-to-plane constraints, each a
+ * trilinear combination of its cell's 8 corners. lambda is a small damping towards the current
+ * positions that keeps components without constraints well posed.
+ * B^T B is applied without being formed: constraints are grouped by cell (sorted by the compact
+ * index of the cell's first corner, `cell_start` giving each group's range), one pass computes
+ * r_c = w_c n_c . sum_l alpha_cl d_l per constraint, a second gathers sum alpha_ck n_c r_c per
+ * point from the 8 cells the point is a corner of. Everything else is per point. */
+#ifndef VD_SOLVER_H
+#define VD_SOLVER_H
+
+#include "correspondence.h"
+#include "deformation.h"
+#include "svd3.h"
+
+typedef struct {
+  /* Weights of the dense data term and the ARAP prior (paper eq. 1). */
+  float w_dense;
+  float w_reg;
+  /* Damping towards the current positions. */
+  float damping;
+  int pad0;
+} VdSolverWeights;
+
+/* Grid coordinates of compact point k. */
+VD_INLINE void vd_grid_coords(int gi, VdVolume vol, int* x, int* y, int* z) {
+  *x = gi % vol.dim_x;
+  int yz = gi / vol.dim_x;
+  *y = yz % vol.dim_y;
+  *z = yz / vol.dim_y;
+}
+
+/* The cell of canonical grid position g: compact indices of its 8 corners (corner o at offset
+ * (o & 1, o >> 1 & 1, o >> 2 & 1)) and their trilinear weights. Returns 0 when a corner is not in
+ * M (the constraint is then ignored). */
+VD_INLINE int vd_cell_corners(vd_float4 g, VD_GLOBAL const int* compact, VdVolume vol, int* idx, float* alpha) {
+  int cx = vd_min_i(vd_max_i((int)floor(g.x), 0), vol.dim_x - 2);
+  int cy = vd_min_i(vd_max_i((int)floor(g.y), 0), vol.dim_y - 2);
+  int cz = vd_min_i(vd_max_i((int)floor(g.z), 0), vol.dim_z - 2);
+  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
+  for (int o = 0; o < 8; ++o) {
+    int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
+    idx[o] = compact[vd_grid_index(vol, cx + ox, cy + oy, cz + oz)];
+    if (idx[o] < 0) return 0;
+    alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+  }
+  return 1;
+}
+
+/* Compact index of the first corner of c's cell, -1 when the constraint is unusable. */
+VD_INLINE int vd_constraint_cell(VdCorrespondence c, VD_GLOBAL const int* compact, VdVolume vol) {
+  if (!(c.canonical.w > 0.0f)) return -1;
+  int idx[8];
+  float alpha[8];
+  if (!vd_cell_corners(c.canonical, compact, vol, idx, alpha)) return -1;
+  return idx[0];
+}
+
+/* w_c n_c . sum_l alpha_l d_l: the constraint's row of B (times its weight) applied to d. */
+VD_INLINE float vd_constraint_apply(VdCorrespondence c, VD_GLOBAL const int* compact, VdVolume vol,
+                                    VD_GLOBAL const vd_float4* d) {
+  int idx[8];
+  float alpha[8];
+  if (!(c.canonical.w > 0.0f) || !vd_cell_corners(c.canonical, compact, vol, idx, alpha)) return 0.0f;
+  vd_float4 s = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  for (int o = 0; o < 8; ++o) s = s + d[idx[o]] * alpha[o];
+  return c.canonical.w * vd_dot3(c.normal, s);
+}
+
+/* w_c n_c . p_c: the constraint's right-hand side value. */
+VD_INLINE float vd_constraint_target(VdCorrespondence c) { return c.canonical.w * vd_dot3(c.normal, c.target); }
+
+/* sum over the cells point k is a corner of, over their constraints c, of alpha_ck n_c values[c];
+ * with `diag` non-null also accumulates sum w_c alpha_ck^2 n_c n_c^T (row-major 3x3). */
+VD_INLINE vd_float4 vd_gather_constraints(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact,
+                                          VdVolume vol, VD_GLOBAL const VdCorrespondence* cons,
+                                          VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* values,
+                                          VdMat3* diag) {
+  int x, y, z;
+  vd_grid_coords(list[k], vol, &x, &y, &z);
+  vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  for (int o = 0; o < 8; ++o) {
+    int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
+    int cx = x - ox, cy = y - oy, cz = z - oz;
+    if (cx < 0 || cy < 0 || cz < 0 || cx > vol.dim_x - 2 || cy > vol.dim_y - 2 || cz > vol.dim_z - 2) continue;
+    int kc = compact[vd_grid_index(vol, cx, cy, cz)];
+    if (kc < 0) continue;
+    for (vd_uint c = cell_start[kc]; c < cell_start[kc + 1]; ++c) {
+      VdCorrespondence cc = cons[c];
+      float fx = cc.canonical.x - (float)cx, fy = cc.canonical.y - (float)cy, fz = cc.canonical.z - (float)cz;
+      float a = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+      if (values) acc = acc + cc.normal * (a * values[c]);
+      if (diag) {
+        vd_float4 nw = cc.normal * (cc.canonical.w * a * a);
+        vd_mat3_add_outer(diag, nw, cc.normal);
+      }
+    }
+  }
+  acc.w = 0.0f;
+  return acc;
+}
+
+/* (L d)_k: the degree times d_k minus the sum of the neighbours (the factor 2 w_r is applied by the caller). */
+VD_INLINE vd_float4 vd_laplacian_apply(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_float4* d) {
+  vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  vd_float4 dk = d[k];
+  for (int j = 0; j < 6; ++j) {
+    int nb = neighbours[6 * k + j];
+    if (nb >= 0) acc = acc + (dk - d[nb]);
+  }
+  acc.w = 0.0f;
+  return acc;
+}
+
+/* A d at point k, given the constraint residuals r_c = vd_constraint_apply(c, d). */
+VD_INLINE vd_float4 vd_system_apply(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
+                                    VD_GLOBAL const int* neighbours, VD_GLOBAL const VdCorrespondence* cons,
+                                    VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* r,
+                                    VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
+  vd_float4 q = vd_laplacian_apply(k, neighbours, d) * (2.0f * w.w_reg) +
+                vd_gather_constraints(k, list, compact, vol, cons, cell_start, r, 0) * w.w_dense + d[k] * w.damping;
+  q.w = 0.0f;
+  return q;
+}
+
+/* Right-hand side b_k (with rotations as quaternions) and the inverse of the 3x3 diagonal block
+ * (the Jacobi preconditioner), given targets[c] = vd_constraint_target(c). */
+VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
+                                  VD_GLOBAL const int* neighbours, VD_GLOBAL const VdCorrespondence* cons,
+                                  VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* targets,
+                                  VD_GLOBAL const vd_float4* rot, VD_GLOBAL const vd_float4* x_prev,
+                                  VdSolverWeights w, VdMat3* diag_inv) {
+  int gx, gy, gz;
+  vd_grid_coords(list[k], vol, &gx, &gy, &gz);
+  vd_float4 rest_k = vd_rest_position(vol, gx, gy, gz);
+  vd_float4 reg = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  int degree = 0;
+  for (int j = 0; j < 6; ++j) {
+    int nb = neighbours[6 * k + j];
+    if (nb < 0) continue;
+    ++degree;
+    int hx, hy, hz;
+    vd_grid_coords(list[nb], vol, &hx, &hy, &hz);
+    vd_float4 e = rest_k - vd_rest_position(vol, hx, hy, hz);
+    reg = reg + vd_quat_rotate(rot[k], e) + vd_quat_rotate(rot[nb], e);
+  }
+  VdMat3 diag = vd_mat3_zero();
+  vd_float4 data = vd_gather_constraints(k, list, compact, vol, cons, cell_start, targets, &diag);
+  float s = 2.0f * w.w_reg * (float)degree + w.damping;
+  for (int a = 0; a < 9; ++a) diag.m[a] *= w.w_dense;
+  diag.m[0] += s;
+  diag.m[4] += s;
+  diag.m[8] += s;
+  /* Symmetric positive definite (s > 0): invert by the adjugate. */
+  float det = vd_mat3_det(diag);
+  VdMat3 inv;
+  inv.m[0] = (diag.m[4] * diag.m[8] - diag.m[5] * diag.m[7]) / det;
+  inv.m[1] = (diag.m[2] * diag.m[7] - diag.m[1] * diag.m[8]) / det;
+  inv.m[2] = (diag.m[1] * diag.m[5] - diag.m[2] * diag.m[4]) / det;
+  inv.m[3] = (diag.m[5] * diag.m[6] - diag.m[3] * diag.m[8]) / det;
+  inv.m[4] = (diag.m[0] * diag.m[8] - diag.m[2] * diag.m[6]) / det;
+  inv.m[5] = (diag.m[2] * diag.m[3] - diag.m[0] * diag.m[5]) / det;
+  inv.m[6] = (diag.m[3] * diag.m[7] - diag.m[4] * diag.m[6]) / det;
+  inv.m[7] = (diag.m[1] * diag.m[6] - diag.m[0] * diag.m[7]) / det;
+  inv.m[8] = (diag.m[0] * diag.m[4] - diag.m[1] * diag.m[3]) / det;
+  *diag_inv = inv;
+  vd_float4 b = reg * w.w_reg + data * w.w_dense + x_prev[k] * w.damping;
+  b.w = 0.0f;
+  return b;
+}
+
+/* Energy terms (paper eqs. 2 and 4) for tests and the status: one constraint's weighted squared
+ * point-to-plane residual, and one point's ARAP sum over its neighbours. */
+VD_INLINE float vd_constraint_energy(VdCorrespondence c, VD_GLOBAL const int* compact, VdVolume vol,
+                                     VD_GLOBAL const vd_float4* x) {
+  int idx[8];
+  float alpha[8];
+  if (!(c.canonical.w > 0.0f) || !vd_cell_corners(c.canonical, compact, vol, idx, alpha)) return 0.0f;
+  vd_float4 s = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  for (int o = 0; o < 8; ++o) s = s + x[idx[o]] * alpha[o];
+  float r = vd_dot3(c.normal, s - c.target);
+  return c.canonical.w * r * r;
+}
+
+VD_INLINE float vd_arap_energy(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* neighbours, VdVolume vol,
+                               VD_GLOBAL const vd_float4* x, VD_GLOBAL const vd_float4* rot) {
+  int gx, gy, gz;
+  vd_grid_coords(list[k], vol, &gx, &gy, &gz);
+  vd_float4 rest_k = vd_rest_position(vol, gx, gy, gz);
+  float e = 0.0f;
+  for (int j = 0; j < 6; ++j) {
+    int nb = neighbours[6 * k + j];
+    if (nb < 0) continue;
+    int hx, hy, hz;
+    vd_grid_coords(list[nb], vol, &hx, &hy, &hz);
+    vd_float4 d = (x[k] - x[nb]) - vd_quat_rotate(rot[k], rest_k - vd_rest_position(vol, hx, hy, hz));
+    d.w = 0.0f;
+    e += vd_dot3(d, d);
+  }
+  return e;
+}
+
+#endif /* VD_SOLVER_H */

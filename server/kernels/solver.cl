@@ -1,0 +1,152 @@
+#include "shared/solver.h"
+
+/* Copies the deformation of the active points into compact arrays (x: position, rot: quaternion). */
+__kernel void vd_solver_gather_state(__global const int* list, __global const float4* def_pos,
+                                     __global const float4* def_rot, __global float4* x, __global float4* rot,
+                                     int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  x[k] = def_pos[list[k]];
+  rot[k] = def_rot[list[k]];
+}
+
+/* Writes the solved state back; w of the position counts the optimisations the point took part in. */
+__kernel void vd_solver_scatter_state(__global const int* list, __global const float4* x, __global const float4* rot,
+                                      __global float4* def_pos, __global float4* def_rot, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  int i = list[k];
+  float4 p = x[k];
+  p.w = def_pos[i].w + 1.0f;
+  def_pos[i] = p;
+  def_rot[i] = rot[k];
+}
+
+/* Counting sort of the per-pixel constraints by cell: count, then (after a scan) scatter. */
+__kernel void vd_constraint_count(__global const VdCorrespondence* corr, __global const int* compact, VdVolume vol,
+                                  __global int* cell_of, __global uint* counts, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int i = get_global_id(0);
+  int kc = vd_constraint_cell(corr[i], compact, vol);
+  cell_of[i] = kc;
+  if (kc >= 0) atomic_inc(&counts[kc]);
+}
+
+__kernel void vd_constraint_scatter(__global const VdCorrespondence* corr, __global const int* cell_of,
+                                    __global const uint* cell_start, __global uint* cursor,
+                                    __global VdCorrespondence* sorted, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int i = get_global_id(0);
+  int kc = cell_of[i];
+  if (kc < 0) return;
+  sorted[cell_start[kc] + atomic_inc(&cursor[kc])] = corr[i];
+}
+
+__kernel void vd_constraint_targets(__global const VdCorrespondence* cons, __global float* targets, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int c = get_global_id(0);
+  targets[c] = vd_constraint_target(cons[c]);
+}
+
+__kernel void vd_constraint_residuals(__global const VdCorrespondence* cons, __global const int* compact, VdVolume vol,
+                                      __global const float4* d, __global float* r, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int c = get_global_id(0);
+  r[c] = vd_constraint_apply(cons[c], compact, vol, d);
+}
+
+__kernel void vd_system_rhs_diag(__global const int* list, __global const int* compact, VdVolume vol,
+                                 __global const int* neighbours, __global const VdCorrespondence* cons,
+                                 __global const uint* cell_start, __global const float* targets,
+                                 __global const float4* rot, __global const float4* x_prev, VdSolverWeights w,
+                                 __global float4* b, __global VdMat3* diag_inv, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  VdMat3 inv;
+  b[k] = vd_system_rhs(k, list, compact, vol, neighbours, cons, cell_start, targets, rot, x_prev, w, &inv);
+  diag_inv[k] = inv;
+}
+
+__kernel void vd_system_apply_kernel(__global const int* list, __global const int* compact, VdVolume vol,
+                                     __global const int* neighbours, __global const VdCorrespondence* cons,
+                                     __global const uint* cell_start, __global const float* r,
+                                     __global const float4* d, VdSolverWeights w, __global float4* q, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  q[k] = vd_system_apply(k, list, compact, vol, neighbours, cons, cell_start, r, d, w);
+}
+
+/* PCG vector updates. */
+__kernel void vd_pcg_precondition(__global const VdMat3* diag_inv, __global const float4* r, __global float4* z,
+                                  int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  z[k] = vd_mat3_apply(diag_inv[k], r[k]);
+}
+
+/* y = a * x + y (xyz only). */
+__kernel void vd_axpy4(float a, __global const float4* x, __global float4* y, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  float4 v = y[k] + a * x[k];
+  v.w = y[k].w;
+  y[k] = v;
+}
+
+/* y = x + a * y (xyz only). */
+__kernel void vd_xpay4(float a, __global const float4* x, __global float4* y, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  float4 v = x[k] + a * y[k];
+  v.w = 0.0f;
+  y[k] = v;
+}
+
+/* y = b - y (xyz only): the initial residual from b and A x0. */
+__kernel void vd_sub_from4(__global const float4* b, __global float4* y, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  float4 v = b[k] - y[k];
+  v.w = 0.0f;
+  y[k] = v;
+}
+
+/* Chunked partial sums of dot3(a, b); the host adds the partials in double precision. */
+__kernel void vd_dot4_partial(__global const float4* a, __global const float4* b, int n, int chunk,
+                              __global float* partials, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int g = get_global_id(0);
+  float s = 0.0f;
+  for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k) s += vd_dot3(a[k], b[k]);
+  partials[g] = s;
+}
+
+/* Energy partial sums: dense term per chunk of constraints, ARAP per chunk of points. */
+__kernel void vd_energy_dense_partial(__global const VdCorrespondence* cons, int n, int chunk,
+                                      __global const int* compact, VdVolume vol, __global const float4* x,
+                                      __global float* partials, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int g = get_global_id(0);
+  float s = 0.0f;
+  for (int c = g * chunk; c < min(n, (g + 1) * chunk); ++c) s += vd_constraint_energy(cons[c], compact, vol, x);
+  partials[g] = s;
+}
+
+__kernel void vd_energy_arap_partial(__global const int* list, __global const int* neighbours, VdVolume vol,
+                                     __global const float4* x, __global const float4* rot, int n, int chunk,
+                                     __global float* partials, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int g = get_global_id(0);
+  float s = 0.0f;
+  for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k) s += vd_arap_energy(k, list, neighbours, vol, x, rot);
+  partials[g] = s;
+}
+
+/* Rest (undeformed) positions of the active points, for the rotation step. */
+__kernel void vd_solver_rest(__global const int* list, VdVolume vol, __global float4* t_hat, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  int x, y, z;
+  vd_grid_coords(list[k], vol, &x, &y, &z);
+  t_hat[k] = vd_rest_position(vol, x, y, z);
+}

@@ -1,0 +1,164 @@
+#include "core/solver.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace vd {
+namespace {
+// Elements per work item of the partial sums.
+constexpr int kChunk = 256;
+}  // namespace
+
+Status SolverParams::Validate() const {
+  auto bad = [](const char* f, double v, const char* b) {
+    std::ostringstream os;
+    os << "SolverParams." << f << " = " << v << " violates " << b;
+    return InvalidArgument(os.str());
+  };
+  if (!(w_dense > 0.f && w_dense < 1e6f)) return bad("w_dense", w_dense, "0 < w_dense < 1e6");
+  if (!(w_reg > 0.f && w_reg < 1e6f)) return bad("w_reg", w_reg, "0 < w_reg < 1e6");
+  if (!(damping > 0.f && damping < 1.f)) return bad("damping", damping, "0 < damping < 1");
+  if (!(flip_flop_iterations >= 1 && flip_flop_iterations <= 100))
+    return bad("flip_flop_iterations", flip_flop_iterations, "1 <= n <= 100");
+  if (!(pcg_iterations >= 1 && pcg_iterations <= 1000)) return bad("pcg_iterations", pcg_iterations, "1 <= n <= 1000");
+  if (!(pcg_tolerance > 0.f && pcg_tolerance < 1.f)) return bad("pcg_tolerance", pcg_tolerance, "0 < tol < 1");
+  return Status::Ok();
+}
+
+VdSolverWeights DeviceSolver::Weights() const {
+  VdSolverWeights w{};
+  w.w_dense = params_.w_dense;
+  w.w_reg = params_.w_reg;
+  w.damping = params_.damping * params_.w_reg;
+  return w;
+}
+
+Status DeviceSolver::Setup(const DeviceVolume& v, const DeviceActiveSet& active,
+                           const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels,
+                           const SolverParams& params) {
+  VD_RETURN_IF_ERROR(params.Validate());
+  if (!v.has_deformation()) return FailedPrecondition("the solver needs a grid with a deformation field");
+  ocl::Context& ctx = ops_->ctx();
+  params_ = params;
+  vol_ = v.vol;
+  active_ = &active;
+  m_ = active.count;
+  for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &z_, &p_, &q_}) VD_RETURN_IF_ERROR(ctx.Reserve(b, std::max<size_t>(m_, 1)));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&diag_inv_, std::max<size_t>(m_, 1)));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&cell_count_, m_ + 1));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&cell_start_, m_ + 1));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&cell_of_, num_pixels));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_solver_gather_state", m_, active.list, v.def_pos, v.def_rot, x_, rot_));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_solver_rest", m_, active.list, vol_, rest_));
+  // Counting sort of the constraints by cell.
+  VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_count", num_pixels, per_pixel, active.compact, vol_, cell_of_, cell_count_));
+  uint32_t total = 0;
+  VD_RETURN_IF_ERROR(ops_->ScanExclusive(cell_count_, m_, cell_start_, &total));
+  num_constraints_ = total;
+  VD_RETURN_IF_ERROR(ctx.Reserve(&cons_, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&targets_, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&residuals_, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_scatter", num_pixels, per_pixel, cell_of_, cell_start_, cell_count_, cons_));
+  return ctx.Run("vd_constraint_targets", total, cons_, targets_);
+}
+
+StatusOr<double> DeviceSolver::SumPartials(size_t groups) {
+  partials_host_.resize(groups);
+  VD_RETURN_IF_ERROR(ops_->ctx().Download(partials_, partials_host_.data(), groups));
+  double s = 0.0;
+  for (float v : partials_host_) s += v;
+  return s;
+}
+
+StatusOr<double> DeviceSolver::Dot(const ocl::Buffer<vd_float4>& a, const ocl::Buffer<vd_float4>& b) {
+  const size_t groups = (m_ + kChunk - 1) / kChunk;
+  VD_RETURN_IF_ERROR(ops_->ctx().Reserve(&partials_, std::max<size_t>(groups, 1)));
+  VD_RETURN_IF_ERROR(ops_->ctx().Run("vd_dot4_partial", groups, a, b, int(m_), kChunk, partials_));
+  return SumPartials(groups);
+}
+
+StatusOr<int> DeviceSolver::PositionStep() {
+  if (m_ == 0) return 0;
+  ocl::Context& ctx = ops_->ctx();
+  const VdSolverWeights w = Weights();
+  const auto& a = *active_;
+  const int nc = int(num_constraints_);
+  VD_RETURN_IF_ERROR(ctx.Copy(x_, x_prev_, m_));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_system_rhs_diag", m_, a.list, a.compact, vol_, a.neighbours, cons_, cell_start_,
+                             targets_, rot_, x_prev_, w, b_, diag_inv_));
+  // r = b - A x
+  VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_residuals", nc, cons_, a.compact, vol_, x_, residuals_));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_system_apply_kernel", m_, a.list, a.compact, vol_, a.neighbours, cons_, cell_start_,
+                             residuals_, x_, w, r_));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_sub_from4", m_, b_, r_));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_pcg_precondition", m_, diag_inv_, r_, z_));
+  VD_RETURN_IF_ERROR(ctx.Copy(z_, p_, m_));
+  VD_ASSIGN_OR_RETURN(double rz, Dot(r_, z_));
+  VD_ASSIGN_OR_RETURN(double bb, Dot(b_, b_));
+  const double stop = double(params_.pcg_tolerance) * params_.pcg_tolerance * std::max(bb, 1e-30);
+  int it = 0;
+  for (; it < params_.pcg_iterations; ++it) {
+    VD_ASSIGN_OR_RETURN(double rr, Dot(r_, r_));
+    if (rr <= stop) break;
+    VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_residuals", nc, cons_, a.compact, vol_, p_, residuals_));
+    VD_RETURN_IF_ERROR(ctx.Run("vd_system_apply_kernel", m_, a.list, a.compact, vol_, a.neighbours, cons_,
+                               cell_start_, residuals_, p_, w, q_));
+    VD_ASSIGN_OR_RETURN(double pq, Dot(p_, q_));
+    if (!(pq > 0.0)) break;
+    const float alpha = float(rz / pq);
+    VD_RETURN_IF_ERROR(ctx.Run("vd_axpy4", m_, alpha, p_, x_));
+    VD_RETURN_IF_ERROR(ctx.Run("vd_axpy4", m_, -alpha, q_, r_));
+    VD_RETURN_IF_ERROR(ctx.Run("vd_pcg_precondition", m_, diag_inv_, r_, z_));
+    VD_ASSIGN_OR_RETURN(double rz_new, Dot(r_, z_));
+    const float beta = float(rz_new / rz);
+    rz = rz_new;
+    VD_RETURN_IF_ERROR(ctx.Run("vd_xpay4", m_, beta, z_, p_));
+  }
+  return it;
+}
+
+Status DeviceSolver::RotationStep() {
+  return ops_->ctx().Run("vd_procrustes", m_, active_->neighbours, x_, rest_, rot_);
+}
+
+StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {
+  ocl::Context& ctx = ops_->ctx();
+  const size_t gc = (num_constraints_ + kChunk - 1) / kChunk, gp = (m_ + kChunk - 1) / kChunk;
+  VD_RETURN_IF_ERROR(ctx.Reserve(&partials_, std::max<size_t>(std::max(gc, gp), 1)));
+  double ed = 0.0, er = 0.0;
+  if (gc) {
+    VD_RETURN_IF_ERROR(ctx.Run("vd_energy_dense_partial", gc, cons_, int(num_constraints_), kChunk, active_->compact,
+                               vol_, x_, partials_));
+    VD_ASSIGN_OR_RETURN(ed, SumPartials(gc));
+  }
+  if (gp) {
+    VD_RETURN_IF_ERROR(ctx.Run("vd_energy_arap_partial", gp, active_->list, active_->neighbours, vol_, x_, rot_,
+                               int(m_), kChunk, partials_));
+    VD_ASSIGN_OR_RETURN(er, SumPartials(gp));
+  }
+  if (dense) *dense = ed;
+  if (reg) *reg = er;
+  return params_.w_dense * ed + params_.w_reg * er;
+}
+
+StatusOr<SolverSummary> DeviceSolver::Solve() {
+  SolverSummary s;
+  s.constraints = int(num_constraints_);
+  s.active_points = int(m_);
+  VD_ASSIGN_OR_RETURN(s.energy_initial, Energy());
+  for (int i = 0; i < params_.flip_flop_iterations; ++i) {
+    VD_ASSIGN_OR_RETURN(int it, PositionStep());
+    s.pcg_iterations += it;
+    VD_RETURN_IF_ERROR(RotationStep());
+  }
+  VD_ASSIGN_OR_RETURN(s.energy_final, Energy());
+  return s;
+}
+
+Status DeviceSolver::WriteBack(DeviceVolume& v) {
+  return ops_->ctx().Run("vd_solver_scatter_state", m_, active_->list, x_, rot_, v.def_pos, v.def_rot);
+}
+
+}  // namespace vd
