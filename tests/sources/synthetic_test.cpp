@@ -2,7 +2,6 @@
 
 #include <gtest/gtest.h>
 
-#include <chrono>
 #include <cstring>
 #include <cmath>
 #include <filesystem>
@@ -22,13 +21,6 @@ namespace vd {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-// Timing bounds are loose (the build machine is shared); sanitizers slow the code ~10x.
-#if defined(__SANITIZE_ADDRESS__)
-constexpr double kSlowdown = 10.0;
-#else
-constexpr double kSlowdown = 1.0;
-#endif
-
 std::unique_ptr<SyntheticScene> Make(const std::string& name, bool noise, uint32_t seed = 1) {
   SyntheticOptions options;
   options.noise = noise;
@@ -477,39 +469,26 @@ TEST(SyntheticTest, SurfacePointsFollowTheMaterial) {
   }
 }
 
-TEST(SyntheticTest, MeshDistanceIsFast) {
+// Closest-point queries near the surface: each query is a surface vertex moved by an offset, so
+// the distance found can never exceed the offset's length. (Speed belongs in benchmarks.)
+TEST(SyntheticTest, MeshDistanceNeverExceedsTheOffsetFromTheSurface) {
   auto scene = Make("tube", false);
   const TriangleMesh mesh = scene->GroundTruthMesh(30);
-  const auto t0 = std::chrono::steady_clock::now();
   const MeshDistance dist(mesh);
-  const auto t1 = std::chrono::steady_clock::now();
   std::mt19937 rng(7);
   std::normal_distribution<float> offset(0.f, 0.01f);
   double sum = 0.0;
-  const int n = 50000;
+  const int n = 20000;
   for (int i = 0; i < n; ++i) {
     const size_t v = size_t(rng() % mesh.num_vertices());
-    sum += dist.Closest(Vertex(mesh, v) + Eigen::Vector3f(offset(rng), offset(rng), offset(rng))).distance;
+    const Eigen::Vector3f o(offset(rng), offset(rng), offset(rng));
+    const float d = dist.Closest(Vertex(mesh, v) + o).distance;
+    ASSERT_LE(d, o.norm() + 1e-6f);
+    sum += d;
   }
-  const auto t2 = std::chrono::steady_clock::now();
-  const double build_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-  const double query_ms = std::chrono::duration<double, std::milli>(t2 - t1).count();
-  std::cout << "MeshDistance: " << mesh.num_triangles() << " triangles, build " << build_ms << " ms, " << n
-            << " queries " << query_ms << " ms (mean distance " << sum / n * 1e3 << " mm)\n";
-  EXPECT_LT(build_ms + query_ms, 3000.0 * kSlowdown);
-}
-
-TEST(SyntheticTest, RenderTime) {
-  for (const std::string& name : SyntheticSceneNames()) {
-    auto scene = Make(name, true);
-    scene->Render(0);
-    const auto t0 = std::chrono::steady_clock::now();
-    const int n = 5;
-    for (int f = 1; f <= n; ++f) scene->Render(f * 10);
-    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count() / n;
-    std::cout << name << ": render " << ms << " ms per frame\n";
-    EXPECT_LT(ms, 1000.0 * kSlowdown) << name;
-  }
+  // Offsets of ~1.7 cm (3-D, 1 cm per axis) that often point along the surface: well below that.
+  EXPECT_GT(sum / n, 0.002);
+  EXPECT_LT(sum / n, 0.012);
 }
 
 TEST(SyntheticTest, WritesDataset) {
