@@ -171,8 +171,9 @@ class Node {
     while (process_times_.size() > 30) process_times_.pop_front();
     state_ = result->tracking_ok ? vdeform::server_status_t::STATE_TRACKING : vdeform::server_status_t::STATE_TRACKING_LOST;
     message_ = result->tracking_ok ? engine_->DeviceDescription() : result->tracking_message;
-    dense_ = result->icp_inliers;
-    energy_final_ = result->icp_rmse;
+    dense_ = result->dense_correspondences;
+    energy_initial_ = float(result->energy_initial);
+    energy_final_ = float(result->energy_final);
     active_voxels_ = result->active_voxels;
     auto live = MeshToMessage(result->live_mesh, NowUs(), frame.seq, vdeform::mesh_t::KIND_LIVE);
     auto canonical = MeshToMessage(result->canonical_mesh, NowUs(), frame.seq, vdeform::mesh_t::KIND_CANONICAL);
@@ -229,7 +230,7 @@ class Node {
       st.active_voxels = active_voxels_;
       st.dense_correspondences = dense_;
       st.sparse_correspondences = 0;
-      st.energy_initial = 0.f;
+      st.energy_initial = energy_initial_;
       st.energy_final = energy_final_;
       st.resident_memory_bytes = ResidentBytes();
       last_status_ = std::chrono::steady_clock::now();
@@ -302,6 +303,7 @@ class Node {
   StageStats stats_;
   std::deque<std::chrono::steady_clock::time_point> process_times_;
   int32_t dense_ = 0;
+  float energy_initial_ = 0.f;
   float energy_final_ = 0.f;
   int64_t active_voxels_ = 0;
   std::optional<vdeform::mesh_t> last_live_, last_canonical_;

@@ -27,8 +27,8 @@ void ServerOptions::Register(FlagParser* f) {
                "frame-%06d.pose.txt (camera-to-world) per frame");
   f->AddString("stats-json", &stats_json, "Offline mode: write per-stage timing statistics, fps and peak memory");
   f->AddBool("rigid-only", &rigid_only,
-             "Rigid tracking and fusion only, without a deformation field. (The non-rigid solve is not in this "
-             "build yet: without this flag the field is allocated and applied but stays the identity.)");
+             "Rigid tracking and fusion only: no deformation field (12 instead of 44 bytes per grid point), no "
+             "non-rigid solve");
   f->AddBool("no-bilateral", &no_bilateral, "Track on the unfiltered depth");
   f->AddString("device", &device, "OpenCL device: index (see --list-devices) or name substring; default first GPU, else CPU");
   f->AddBool("list-devices", &list_devices, "List the OpenCL devices and exit");

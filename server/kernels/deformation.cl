@@ -13,3 +13,24 @@ __kernel void vd_deform_vertices(__global const float4* grid_pos, __global const
   int i = get_global_id(0);
   out[i] = vd_deform_point(grid_pos[i], def_pos, vol);
 }
+
+/* Two passes so no work item reads a neighbour another is writing: compute, then commit. */
+__kernel void vd_extrapolate(__global const int* list, __global const float4* def_pos,
+                             __global const float4* def_rot, VdVolume vol, __global float4* pos_out,
+                             __global float4* rot_out, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  float4 p, r;
+  vd_extrapolate_point(list[k], def_pos, def_rot, vol, &p, &r);
+  pos_out[k] = p;
+  rot_out[k] = r;
+}
+
+__kernel void vd_extrapolate_commit(__global const int* list, __global const float4* pos_in,
+                                    __global const float4* rot_in, __global float4* def_pos, __global float4* def_rot,
+                                    int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  def_pos[list[k]] = pos_in[k];
+  def_rot[list[k]] = rot_in[k];
+}

@@ -43,4 +43,37 @@ VD_INLINE vd_float4 vd_deform_point(vd_float4 g, VD_GLOBAL const vd_float4* def_
   return acc;
 }
 
+/* A grid point entering the active set for the first time (never optimised: w == 0) takes the
+ * mean displacement of its 26-neighbours that were optimised, and the rotation of the first such
+ * neighbour, so it starts where the current deformation field puts it. Without optimised
+ * neighbours it keeps its state. Returns 1 when the point was initialised. */
+VD_INLINE int vd_extrapolate_point(int gi, VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
+                                   VdVolume vol, vd_float4* pos_out, vd_float4* rot_out) {
+  int x = gi % vol.dim_x, yz = gi / vol.dim_x;
+  int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  *pos_out = def_pos[gi];
+  *rot_out = def_rot[gi];
+  if (def_pos[gi].w > 0.0f) return 0;
+  vd_float4 disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  float n = 0.0f;
+  int first = -1;
+  for (int k = 0; k < 27; ++k) {
+    int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
+    int nx = x + dx, ny = y + dy, nz = z + dz;
+    if (k == 13 || nx < 0 || ny < 0 || nz < 0 || nx >= vol.dim_x || ny >= vol.dim_y || nz >= vol.dim_z) continue;
+    int j = nx + vol.dim_x * (ny + vol.dim_y * nz);
+    vd_float4 t = def_pos[j];
+    if (!(t.w > 0.0f)) continue;
+    disp = disp + (t - vd_rest_position(vol, nx, ny, nz));
+    n += 1.0f;
+    if (first < 0) first = j;
+  }
+  if (n == 0.0f) return 0;
+  vd_float4 p = vd_rest_position(vol, x, y, z) + disp / n;
+  p.w = 0.0f;
+  *pos_out = p;
+  *rot_out = def_rot[first];
+  return 1;
+}
+
 #endif /* VD_DEFORMATION_H */

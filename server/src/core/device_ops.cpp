@@ -155,6 +155,24 @@ Status DeviceOps::Correspondences(const DeviceRaster& model, const ocl::Buffer<v
                    mesh.positions_grid, mesh.triangles, params, out);
 }
 
+Status DeviceOps::Extrapolate(DeviceVolume& v, const DeviceActiveSet& active) {
+  if (!v.has_deformation()) return FailedPrecondition("Extrapolate needs a deformation field");
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_pos_, std::max<size_t>(active.count, 1)));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_rot_, std::max<size_t>(active.count, 1)));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_extrapolate", active.count, active.list, v.def_pos, v.def_rot, v.vol,
+                               extrapolated_pos_, extrapolated_rot_));
+  return ctx_->Run("vd_extrapolate_commit", active.count, active.list, extrapolated_pos_, extrapolated_rot_, v.def_pos,
+                   v.def_rot);
+}
+
+Status DeviceOps::IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, float k_min, VdCamera cam,
+                                  VdPose world_to_cam, const ocl::Buffer<float>& depth,
+                                  const ocl::Buffer<uint32_t>& rgba) {
+  if (!v.has_deformation()) return FailedPrecondition("IntegrateActive needs a deformation field");
+  return ctx_->Run("vd_tsdf_integrate_active", active.count, v.tsdf, v.weight, v.color, active.list, v.def_pos, k_min,
+                   v.vol, cam, world_to_cam, depth, rgba);
+}
+
 Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
   const size_t n = v.num_voxels(), rows = v.num_rows();
   if (mc_codes_.size() < n) return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on this grid");

@@ -92,6 +92,11 @@ class DeviceOps {
   Status Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
                          const ocl::Buffer<vd_float4>& obs_n, const DeviceMesh& mesh, const VdCorrParams& params,
                          ocl::Buffer<VdCorrespondence>& out);
+  // Initialises members of M never optimised from their optimised neighbours' displacement.
+  Status Extrapolate(DeviceVolume& v, const DeviceActiveSet& active);
+  // Non-rigid fusion into the members of M optimised at least k_min times, at their deformed positions.
+  Status IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, float k_min, VdCamera cam,
+                         VdPose world_to_cam, const ocl::Buffer<float>& depth, const ocl::Buffer<uint32_t>& rgba);
   // M from the cell codes of the last MarchingCubes() call on v.
   Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out);
   Status Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out);
@@ -116,6 +121,8 @@ class DeviceOps {
   std::vector<ocl::Buffer<uint32_t>> scan_sums_;
   std::vector<ocl::Buffer<uint32_t>> scan_offsets_;
   ocl::Buffer<float> icp_partials_;
+  ocl::Buffer<vd_float4> extrapolated_pos_;
+  ocl::Buffer<vd_float4> extrapolated_rot_;
   // Active-set scratch: surface flags, membership flags, per-row counts and offsets.
   ocl::Buffer<uint8_t> active_surface_;
   ocl::Buffer<uint8_t> active_member_;

@@ -83,6 +83,12 @@ Status EngineParams::Validate() const {
     return Bad("min_inlier_fraction", min_inlier_fraction, "0 <= f < 1");
   if (!(max_frame_translation > 0.f)) return Bad("max_frame_translation", max_frame_translation, "> 0");
   if (!(max_frame_rotation_deg > 0.f)) return Bad("max_frame_rotation_deg", max_frame_rotation_deg, "> 0");
+  if (!(nonrigid_outer_iterations >= 0 && nonrigid_outer_iterations <= 20))
+    return Bad("nonrigid_outer_iterations", nonrigid_outer_iterations, "0 <= n <= 20");
+  if (!(corr_eps_d > 0.f && corr_eps_n > 0.f && corr_eps_n <= 2.f && corr_eps_v > 0.f && corr_eps_v <= 2.f))
+    return Bad("corr_eps_*", corr_eps_d, "eps_d > 0, 0 < eps_n, eps_v <= 2");
+  if (!(k_min >= 0.f && k_min <= 100.f)) return Bad("k_min", k_min, "0 <= k_min <= 100");
+  VD_RETURN_IF_ERROR(solver.Validate());
   return Status::Ok();
 }
 
@@ -95,7 +101,7 @@ StatusOr<std::unique_ptr<Engine>> Engine::Create(const EngineParams& params, con
 }
 
 Engine::Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx)
-    : params_(params), ctx_(std::move(ctx)), ops_(ctx_.get()) {}
+    : params_(params), ctx_(std::move(ctx)), ops_(ctx_.get()), solver_(std::make_unique<DeviceSolver>(&ops_)) {}
 
 void Engine::Reset() {
   initialised_ = false;
@@ -290,15 +296,16 @@ Status Engine::ExtractMesh(FrameResult* result, bool download) {
     VD_RETURN_IF_ERROR(ops_.GridToWorld(volume_.vol, &mesh_));
   }
   VD_RETURN_IF_ERROR(ctx_->Finish());
-  result->times.ms[4] = MsSince(t0);
+  result->times.ms[5] = MsSince(t0);
   if (!download) return Status::Ok();
   t0 = Clock::now();
   const size_t nv = mesh_.num_vertices, nt = mesh_.num_triangles;
-  std::vector<vd_float4> pos(nv), nrm(nv);
+  std::vector<vd_float4> pos(nv), grid(nv), nrm(nv);
   std::vector<uint32_t> col(nv);
   TriangleMesh& canon = result->canonical_mesh;
   canon.triangles.resize(3 * nt);
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.positions, pos.data(), nv));
+  VD_RETURN_IF_ERROR(ctx_->Download(mesh_.positions_grid, grid.data(), nv));
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.normals, nrm.data(), nv));
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.colors, col.data(), nv));
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.triangles, canon.triangles.data(), 3 * nt));
@@ -314,18 +321,50 @@ Status Engine::ExtractMesh(FrameResult* result, bool download) {
   const Eigen::Matrix3f R = inv.topLeftCorner<3, 3>().cast<float>();
   const Eigen::Vector3f t = inv.topRightCorner<3, 1>().cast<float>();
   for (size_t i = 0; i < nv; ++i) {
+    // Live: the deformed position seen from this frame's camera. Canonical: the undeformed grid
+    // position (world = first frame's camera), same vertex order and faces.
     const Eigen::Vector3f p(pos[i].x, pos[i].y, pos[i].z), n(nrm[i].x, nrm[i].y, nrm[i].z);
+    const Eigen::Vector3f rest(volume_.vol.origin.x + volume_.vol.voxel_size * grid[i].x,
+                               volume_.vol.origin.y + volume_.vol.voxel_size * grid[i].y,
+                               volume_.vol.origin.z + volume_.vol.voxel_size * grid[i].z);
     const Eigen::Vector3f pc = R * p + t, nc = R * n;
     for (int a = 0; a < 3; ++a) {
-      canon.positions[3 * i + a] = p[a];
+      canon.positions[3 * i + a] = rest[a];
       canon.normals[3 * i + a] = n[a];
       live.positions[3 * i + a] = pc[a];
       live.normals[3 * i + a] = nc[a];
       live.colors[3 * i + a] = canon.colors[3 * i + a] = uint8_t((col[i] >> (8 * a)) & 255u);
     }
   }
-  result->times.ms[5] = MsSince(t0);
+  result->times.ms[6] = MsSince(t0);
   return Status::Ok();
+}
+
+Status Engine::NonRigid(FrameResult* result) {
+  // M from the surface extracted after the last frame; new members start from the field.
+  VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_));
+  VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
+  const size_t pixels = static_cast<size_t>(cam_.width) * cam_.height;
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, pixels));
+  VdCorrParams cp{};
+  cp.eps_d = params_.corr_eps_d;
+  cp.eps_n = params_.corr_eps_n;
+  cp.eps_v = params_.corr_eps_v;
+  cp.cam_to_world = ToVdPose(pose_);
+  const VdPose world_to_cam = ToVdPose(pose_.inverse());
+  for (int outer = 0; outer < params_.nonrigid_outer_iterations; ++outer) {
+    // The deformed mesh at the current pose: each pixel pairs a model sample with its observation.
+    VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
+    VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
+    VD_RETURN_IF_ERROR(ops_.Correspondences(live_, vmap_[0], nmap_[0], mesh_, cp, corr_));
+    VD_RETURN_IF_ERROR(solver_->Setup(volume_, active_, corr_, pixels, params_.solver));
+    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve());
+    VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
+    if (outer == 0) result->energy_initial = summary.energy_initial;
+    result->energy_final = summary.energy_final;
+    result->dense_correspondences = summary.constraints;
+  }
+  return ctx_->Finish();
 }
 
 StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
@@ -364,16 +403,27 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     result.times.ms[2] = MsSince(t0);
   }
   result.pose = pose_;
+  const bool nonrigid = volume_.has_deformation() && frames_fused_ > 0 && mesh_.num_triangles > 0;
+  if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0) {
+    t0 = Clock::now();
+    VD_RETURN_IF_ERROR(NonRigid(&result));
+    result.times.ms[3] = MsSince(t0);
+  }
   if (result.tracking_ok) {
     t0 = Clock::now();
-    VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
+    if (nonrigid) {
+      VD_RETURN_IF_ERROR(ops_.IntegrateActive(volume_, active_, params_.k_min, cam_, ToVdPose(pose_.inverse()),
+                                              depth_raw_m_, rgba_));
+    } else {
+      VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
+    }
     VD_RETURN_IF_ERROR(ctx_->Finish());
-    result.times.ms[3] = MsSince(t0);
+    result.times.ms[4] = MsSince(t0);
     ++frames_fused_;
   }
   VD_RETURN_IF_ERROR(ExtractMesh(&result, true));
   model_pose_ = pose_;
-  result.active_voxels = int64_t(mesh_.num_vertices);
+  result.active_voxels = int64_t(active_.count);
   return result;
 }
 

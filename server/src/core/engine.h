@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "core/device_ops.h"
+#include "core/solver.h"
 #include "vd/common/frame.h"
 #include "vd/common/mesh.h"
 #include "vd/common/status.h"
@@ -53,14 +54,23 @@ struct EngineParams {
   // grid point). Without it the field exists and deforms the mesh (identity until the non-rigid
   // solve moves it).
   bool rigid_only = false;
+  // Non-rigid tracking: outer iterations (re-rendering and new correspondences) per frame.
+  int nonrigid_outer_iterations = 2;
+  // Correspondence kernels (section 5.1): distance (m), normal deviation and view (1 - cos).
+  float corr_eps_d = 0.02f;
+  float corr_eps_n = 0.5f;
+  float corr_eps_v = 0.8f;
+  // Grid points are fused only after taking part in this many optimisations (section 8).
+  float k_min = 3.f;
+  SolverParams solver;
   Status Validate() const;
 };
 
 // Wall-clock milliseconds of each stage of the last frame.
 struct StageTimes {
-  static constexpr int kCount = 6;
-  static constexpr const char* kNames[kCount] = {"preprocess", "raster", "icp", "integrate", "marching_cubes",
-                                                 "download"};
+  static constexpr int kCount = 7;
+  static constexpr const char* kNames[kCount] = {"preprocess", "raster", "icp",     "nonrigid",
+                                                 "integrate",  "marching_cubes", "download"};
   std::array<double, kCount> ms{};
 };
 
@@ -78,6 +88,10 @@ struct FrameResult {
   int icp_inliers = 0;
   float icp_rmse = 0.f;
   int64_t active_voxels = 0;
+  // Non-rigid solve of this frame: constraints, E_total before and after (0 when rigid).
+  int dense_correspondences = 0;
+  double energy_initial = 0.0;
+  double energy_final = 0.0;
 };
 
 class Engine {
@@ -107,6 +121,7 @@ class Engine {
   Status Preprocess(const RgbdFrame& frame);
   Status Track(FrameResult* result);
   Status ExtractMesh(FrameResult* result, bool download);
+  Status NonRigid(FrameResult* result);
 
   EngineParams params_;
   std::unique_ptr<ocl::Context> ctx_;
@@ -116,6 +131,12 @@ class Engine {
   DeviceVolume volume_;
   DeviceMesh mesh_;
   DeviceRaster model_;
+  // Non-rigid state: the active set, the deformed mesh rendered at the current pose, the
+  // per-pixel correspondences and the solver's buffers.
+  DeviceActiveSet active_;
+  DeviceRaster live_;
+  ocl::Buffer<VdCorrespondence> corr_;
+  std::unique_ptr<DeviceSolver> solver_;
   Eigen::Matrix4d pose_ = Eigen::Matrix4d::Identity();
   // Pose at which mesh_ was last rendered into model_.
   Eigen::Matrix4d model_pose_ = Eigen::Matrix4d::Identity();
