@@ -4,7 +4,8 @@
  * within a row are running sums in that loop, so only the per-row totals need a device scan. */
 
 __kernel void vd_mc_classify(__global const float* tsdf, __global const float* weight, VdVolume vol,
-                             __global const uchar* tri_counts, __global ushort* codes, __global uint* row_tris, int vd_items) {
+                             __global const uchar* tri_counts, __global ushort* codes, __global uint* row_tris,
+                             int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
@@ -35,7 +36,8 @@ __kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* cod
 __kernel void vd_mc_vertices(__global const float* tsdf, __global const uint* color, VdVolume vol,
                              __global const uchar* masks, __global const uint* row_verts,
                              __global const uint* row_vert_offset, __global uint* vert_offset,
-                             __global float4* positions, __global float4* normals, __global uint* colors, int vd_items) {
+                             __global float4* positions, __global float4* normals, __global uint* colors,
+                             int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   if (row_verts[yz] == 0u) return;
