@@ -68,7 +68,6 @@ Status FlagParser::Parse(int argc, char** argv, bool* help_requested) {
       value = argv[++i];
     }
     VD_RETURN_IF_ERROR(it->set(value));
-    given_.push_back(name);
   }
   return Status::Ok();
 }
@@ -84,10 +83,6 @@ std::string FlagParser::Help() const {
   }
   os << "  --help\n      Show this text.\n";
   return os.str();
-}
-
-bool FlagParser::Given(const std::string& name) const {
-  return std::find(given_.begin(), given_.end(), name) != given_.end();
 }
 
 }  // namespace vd

@@ -19,8 +19,6 @@ class FlagParser {
   // Parses argv; *help_requested is set for --help / -h (the caller prints Help() and exits 0).
   Status Parse(int argc, char** argv, bool* help_requested);
   std::string Help() const;
-  // True when the flag appeared on the command line.
-  bool Given(const std::string& name) const;
 
  private:
   struct Flag {
@@ -30,7 +28,6 @@ class FlagParser {
   };
   std::string usage_;
   std::vector<Flag> flags_;
-  std::vector<std::string> given_;
 };
 
 }  // namespace vd

@@ -18,7 +18,6 @@ typedef ushort vd_ushort;
 #define VD_F4(x, y, z, w) ((float4)((x), (y), (z), (w)))
 #define VD_ATOMIC_MIN_U32(ptr, v) atomic_min((ptr), (v))
 #define VD_FLOAT_AS_UINT(f) as_uint(f)
-#define VD_UINT_AS_FLOAT(u) as_float(u)
 
 #else
 /* ---------------- C++17 host ---------------- */
@@ -46,7 +45,6 @@ inline vd_float4 operator*(vd_float4 a, vd_float4 b) { return {a.x * b.x, a.y * 
 inline vd_float4 operator/(vd_float4 a, float s) { return {a.x / s, a.y / s, a.z / s, a.w / s}; }
 inline vd_float4& operator+=(vd_float4& a, vd_float4 b) { a = a + b; return a; }
 inline vd_uint VD_FLOAT_AS_UINT(float f) { vd_uint u; memcpy(&u, &f, 4); return u; }
-inline float VD_UINT_AS_FLOAT(vd_uint u) { float f; memcpy(&f, &u, 4); return f; }
 /* The host reference runs single-threaded or with OpenMP; a relaxed atomic keeps it race-free. */
 inline void VD_ATOMIC_MIN_U32(vd_uint* p, vd_uint v) {
   vd_uint cur = __atomic_load_n(p, __ATOMIC_RELAXED);

@@ -287,7 +287,7 @@ Status Engine::Track(FrameResult* result) {
   return Status::Ok();
 }
 
-Status Engine::ExtractMesh(FrameResult* result, bool download) {
+Status Engine::ExtractMesh(FrameResult* result) {
   auto t0 = Clock::now();
   VD_RETURN_IF_ERROR(ops_.MarchingCubes(volume_, &mesh_));
   if (volume_.has_deformation()) {
@@ -297,11 +297,17 @@ Status Engine::ExtractMesh(FrameResult* result, bool download) {
   }
   VD_RETURN_IF_ERROR(ctx_->Finish());
   result->times.ms[5] = MsSince(t0);
-  if (!download) return Status::Ok();
   t0 = Clock::now();
   const size_t nv = mesh_.num_vertices, nt = mesh_.num_triangles;
-  std::vector<vd_float4> pos(nv), grid(nv), nrm(nv);
-  std::vector<uint32_t> col(nv);
+  // Host copies reuse the engine's scratch: no allocation per frame once the mesh stops growing.
+  std::vector<vd_float4>& pos = host_pos_;
+  std::vector<vd_float4>& grid = host_grid_;
+  std::vector<vd_float4>& nrm = host_nrm_;
+  std::vector<uint32_t>& col = host_col_;
+  pos.resize(nv);
+  grid.resize(nv);
+  nrm.resize(nv);
+  col.resize(nv);
   TriangleMesh& canon = result->canonical_mesh;
   canon.triangles.resize(3 * nt);
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.positions, pos.data(), nv));
@@ -421,7 +427,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     result.times.ms[4] = MsSince(t0);
     ++frames_fused_;
   }
-  VD_RETURN_IF_ERROR(ExtractMesh(&result, true));
+  VD_RETURN_IF_ERROR(ExtractMesh(&result));
   model_pose_ = pose_;
   result.active_voxels = int64_t(active_.count);
   return result;

@@ -120,7 +120,7 @@ class Engine {
   Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx);
   Status Preprocess(const RgbdFrame& frame);
   Status Track(FrameResult* result);
-  Status ExtractMesh(FrameResult* result, bool download);
+  Status ExtractMesh(FrameResult* result);
   Status NonRigid(FrameResult* result);
 
   EngineParams params_;
@@ -150,6 +150,9 @@ class Engine {
   std::array<ocl::Buffer<vd_float4>, 3> nmap_;
   ocl::Buffer<float> scratch_;
   std::vector<uint32_t> rgba_host_;
+  // Mesh download scratch (positions, grid positions, normals, colours).
+  std::vector<vd_float4> host_pos_, host_grid_, host_nrm_;
+  std::vector<uint32_t> host_col_;
   int valid_pixels_ = 0;
 };
 
