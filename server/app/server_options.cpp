@@ -19,6 +19,8 @@ void ServerOptions::Register(FlagParser* f) {
               "Space added around the first frame's points when placing the grid, metres (larger for a moving "
               "camera that will see more of the scene)");
   f->AddString("icp-iterations", &icp_iterations, "Rigid ICP iterations per pyramid level, finest first");
+  f->AddFloat("icp-degeneracy", &icp_degeneracy,
+              "ICP information ratio below which a pose direction is held at the last pose (0 = off)");
   f->AddInt("count", &count, "Offline mode: process at most N frames (-1 = all)");
   f->AddInt("start", &start, "Offline mode: first frame index");
   f->AddInt("stride", &stride, "Offline mode: use every n-th frame");
@@ -44,6 +46,7 @@ StatusOr<EngineParams> ServerOptions::ToEngineParams() const {
   if (std::sscanf(icp_iterations.c_str(), "%d,%d,%d%c", &a, &b, &c, &tail) != 3)
     return InvalidArgument("--icp-iterations expects three counts like 10,5,4, got '" + icp_iterations + "'");
   p.icp_iterations = {a, b, c};
+  p.icp_degeneracy = float(icp_degeneracy);
   p.voxel_size = float(voxel_size);
   p.min_depth = float(min_depth);
   p.max_depth = float(max_depth);

@@ -20,6 +20,7 @@ struct ServerOptions {
   double volume_margin = 0.10;
   // ICP iterations per pyramid level, finest first ("10,5,4").
   std::string icp_iterations = "10,5,4";
+  double icp_degeneracy = 1e-4;
   int64_t count = -1;
   int64_t start = 0;
   int64_t stride = 1;

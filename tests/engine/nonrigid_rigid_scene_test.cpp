@@ -1,5 +1,7 @@
 // The non-rigid pipeline on the rigid object seen by a moving camera: the deformation field must
 // stay rigid (issue bound: mean non-rigid displacement <= 1 mm; measured 0.24 mm on 2026-11-22).
+#include <gtest/gtest.h>
+
 #include "scene_eval.h"
 
 namespace vd {

@@ -5,6 +5,8 @@
 //   material point its canonical vertex lies on.
 // The bounds are not reached yet: this suite carries the "acceptance" label, which CI leaves out;
 // measured numbers are recorded in docs/BENCHMARKS.md.
+#include <gtest/gtest.h>
+
 #include "scene_eval.h"
 
 namespace vd {

@@ -1,14 +1,13 @@
 #pragma once
-// Runs a synthetic scene through the engine (sensor noise, 4 mm voxels, 60 frames, default
-// parameters) and measures it against ground truth:
+// Runs a synthetic scene through the engine and measures it against ground truth:
 //   surface error = mean distance from live-mesh vertices to the true surface of that frame;
 //   drift = mean distance between each live vertex and the true position, in that frame, of the
 //   material point its canonical vertex lies on;
 //   non-rigid displacement = mean distance between each live vertex and its canonical vertex moved
 //   by the estimated camera pose only.
-#include <gtest/gtest.h>
-
+// Free of gtest: the engine suites and the scene benchmark (tests/bench/scene_bench.cpp) share it.
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <string>
@@ -21,59 +20,106 @@ namespace vd::test {
 
 struct SceneErrors {
   double worst_surface_mm = 0, mean_surface_mm = 0, last_drift_mm = 0, last_nonrigid_mm = 0;
+  // Engine statistics over the processed frames: stage means (ms), frames, mean active set size.
+  std::array<double, StageTimes::kCount> stage_ms{};
+  double total_ms = 0;
+  int frames = 0;
+  double mean_active_voxels = 0;
+  size_t device_peak_bytes = 0;
+};
+
+struct SceneRun {
+  std::string name;
+  EngineParams params;
+  // Frames of one pass of the motion, and which of them are fed (every stride-th).
+  int num_frames = 60;
+  int stride = 1;
+  // Print one line per frame.
+  bool verbose = false;
+  std::string device;
 };
 
 inline Eigen::Vector3f V(const TriangleMesh& m, size_t i) {
   return Eigen::Vector3f(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]);
 }
 
-inline SceneErrors RunScene(const std::string& name, bool rigid_only) {
+inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   SceneErrors out;
   SyntheticOptions so;
   so.noise = true;
-  so.num_frames = 60;
-  auto scene = MakeSyntheticScene(name, so);
-  EXPECT_TRUE(scene.ok());
-  EngineParams p;
-  p.rigid_only = rigid_only;
-  auto engine = Engine::Create(p, "");
-  EXPECT_TRUE(engine.ok()) << engine.status().ToString();
-  if (!scene.ok() || !engine.ok()) return out;
-  const MeshDistance gt0((*scene)->GroundTruthMesh(0));
-  double sum_surface = 0;
-  for (int k = 0; k < 60; ++k) {
-    auto r = (*engine)->Process((*scene)->Render(k));
-    EXPECT_TRUE(r.ok()) << r.status().ToString();
-    if (!r.ok()) return out;
-    const TriangleMesh gt = (*scene)->GroundTruthMesh(k);
+  so.num_frames = run.num_frames;
+  VD_ASSIGN_OR_RETURN(auto scene, MakeSyntheticScene(run.name, so));
+  VD_ASSIGN_OR_RETURN(auto engine, Engine::Create(run.params, run.device));
+  const MeshDistance gt0(scene->GroundTruthMesh(0));
+  double sum_surface = 0, sum_active = 0;
+  int last = 0;
+  for (int k = 0; k < run.num_frames; k += std::max(1, run.stride)) last = k;
+  for (int k = 0; k < run.num_frames; k += std::max(1, run.stride)) {
+    VD_ASSIGN_OR_RETURN(FrameResult r, engine->Process(scene->Render(k)));
+    const TriangleMesh gt = scene->GroundTruthMesh(k);
     const MeshDistance dist(gt);
     double s = 0;
-    for (size_t i = 0; i < r->live_mesh.num_vertices(); ++i) s += dist.Closest(V(r->live_mesh, i)).distance;
-    const double surface_mm = 1000 * s / std::max<size_t>(1, r->live_mesh.num_vertices());
+    for (size_t i = 0; i < r.live_mesh.num_vertices(); ++i) s += dist.Closest(V(r.live_mesh, i)).distance;
+    const double surface_mm = 1000 * s / std::max<size_t>(1, r.live_mesh.num_vertices());
     out.worst_surface_mm = std::max(out.worst_surface_mm, surface_mm);
     sum_surface += surface_mm;
-    if (k == 59) {
+    ++out.frames;
+    for (int i = 0; i < StageTimes::kCount; ++i) {
+      out.stage_ms[i] += r.times.ms[i];
+      out.total_ms += r.times.ms[i];
+    }
+    sum_active += double(r.active_voxels);
+    if (run.verbose) {
+      std::printf("frame %3d: surface %.2f mm, %zu vertices, %lld active, E %.4g -> %.4g, %d constraints\n", k,
+                  surface_mm, r.live_mesh.num_vertices(), static_cast<long long>(r.active_voxels), r.energy_initial,
+                  r.energy_final, r.dense_correspondences);
+    }
+    if (k == last) {
       // Drift: canonical vertex -> material point on frame 0's true surface -> its true position now.
       double d = 0, nr = 0;
-      const Eigen::Matrix4f cam_from_world = r->pose.inverse().cast<float>();
-      for (size_t i = 0; i < r->live_mesh.num_vertices(); ++i) {
-        const ClosestPoint c = gt0.Closest(V(r->canonical_mesh, i));
+      const Eigen::Matrix4f cam_from_world = r.pose.inverse().cast<float>();
+      for (size_t i = 0; i < r.live_mesh.num_vertices(); ++i) {
+        const ClosestPoint c = gt0.Closest(V(r.canonical_mesh, i));
         const Eigen::Vector3f truth_k = MeshDistance::Evaluate(gt, c.where);
-        d += (truth_k - V(r->live_mesh, i)).norm();
+        d += (truth_k - V(r.live_mesh, i)).norm();
         // Non-rigid displacement: live vertex vs its canonical vertex moved rigidly by the pose.
-        const Eigen::Vector3f rigid = (cam_from_world * V(r->canonical_mesh, i).homogeneous()).head<3>();
-        nr += (rigid - V(r->live_mesh, i)).norm();
+        const Eigen::Vector3f rigid = (cam_from_world * V(r.canonical_mesh, i).homogeneous()).head<3>();
+        nr += (rigid - V(r.live_mesh, i)).norm();
       }
-      out.last_drift_mm = 1000 * d / std::max<size_t>(1, r->live_mesh.num_vertices());
-      out.last_nonrigid_mm = 1000 * nr / std::max<size_t>(1, r->live_mesh.num_vertices());
+      out.last_drift_mm = 1000 * d / std::max<size_t>(1, r.live_mesh.num_vertices());
+      out.last_nonrigid_mm = 1000 * nr / std::max<size_t>(1, r.live_mesh.num_vertices());
     }
   }
-  out.mean_surface_mm = sum_surface / 60;
-  std::printf("%s (%s): surface error mean %.2f mm, worst frame %.2f mm; last frame drift %.2f mm, mean non-rigid "
-              "displacement %.2f mm\n",
-              name.c_str(), rigid_only ? "rigid-only" : "non-rigid", out.mean_surface_mm, out.worst_surface_mm,
-              out.last_drift_mm, out.last_nonrigid_mm);
+  const int n = std::max(1, out.frames);
+  out.mean_surface_mm = sum_surface / n;
+  out.mean_active_voxels = sum_active / n;
+  for (double& v : out.stage_ms) v /= n;
+  out.total_ms /= n;
+  out.device_peak_bytes = engine->device_peak_bytes();
   return out;
+}
+
+inline void PrintErrors(const std::string& label, const SceneErrors& e) {
+  std::printf("%s: surface error mean %.2f mm, worst frame %.2f mm; last frame drift %.2f mm, mean non-rigid "
+              "displacement %.2f mm\n",
+              label.c_str(), e.mean_surface_mm, e.worst_surface_mm, e.last_drift_mm, e.last_nonrigid_mm);
+}
+
+// The engine suites' defaults: sensor noise, 4 mm voxels, 60 frames, default parameters.
+inline SceneErrors RunScene(const std::string& name, bool rigid_only, int stride = 1) {
+  SceneRun run;
+  run.name = name;
+  run.params.rigid_only = rigid_only;
+  run.stride = stride;
+  auto e = EvaluateScene(run);
+  if (!e.ok()) {
+    std::fprintf(stderr, "%s: %s\n", name.c_str(), e.status().ToString().c_str());
+    SceneErrors failed;
+    failed.worst_surface_mm = failed.mean_surface_mm = failed.last_drift_mm = failed.last_nonrigid_mm = 1e9;
+    return failed;
+  }
+  PrintErrors(name + (rigid_only ? " (rigid-only)" : " (non-rigid)"), *e);
+  return *e;
 }
 
 inline bool HaveDevice() {

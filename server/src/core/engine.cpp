@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <opencv2/imgproc.hpp>
 
 #include "vd/common/log.h"
@@ -76,6 +77,7 @@ Status EngineParams::Validate() const {
   if (!(bilateral_sigma_depth_m > 0.f)) return Bad("bilateral_sigma_depth_m", bilateral_sigma_depth_m, "> 0");
   for (int it : icp_iterations)
     if (it < 0 || it > 100) return Bad("icp_iterations", it, "0 <= iterations <= 100");
+  if (!(icp_degeneracy >= 0.f && icp_degeneracy < 0.1f)) return Bad("icp_degeneracy", icp_degeneracy, "0 <= tau < 0.1");
   if (!(icp_max_distance > 0.f)) return Bad("icp_max_distance", icp_max_distance, "> 0");
   if (!(icp_max_normal_angle_deg > 0.f && icp_max_normal_angle_deg <= 90.f))
     return Bad("icp_max_normal_angle_deg", icp_max_normal_angle_deg, "0 < angle <= 90");
@@ -231,6 +233,8 @@ Status Engine::Track(FrameResult* result) {
   const Eigen::Matrix4d model_inv = model_pose_.inverse();
   int inliers = 0;
   double sq = 0.0;
+  // Sum of this frame's increments: the first-order twist from the starting pose.
+  Eigen::Matrix<double, 6, 1> xi_total = Eigen::Matrix<double, 6, 1>::Zero();
   for (int l = 2; l >= 0; --l) {
     const VdCamera cl = ScaledCamera(cam_, l);
     for (int it = 0; it < params_.icp_iterations[l]; ++it) {
@@ -252,6 +256,24 @@ Status Engine::Track(FrameResult* result) {
       for (int r = 0; r < 6; ++r)
         for (int c = r; c < 6; ++c) A(r, c) = A(c, r) = acc[q++];
       for (int r = 0; r < 6; ++r) b(r) = acc[21 + r];
+      // Prior towards the frame's starting pose in the directions the depth barely observes (the
+      // spin of a surface of revolution about its axis, a plane sliding in itself), where a bare
+      // Gauss-Newton step turns noise and small model errors into drift. Direction i of A, with
+      // information ratio r_i = lambda_i / lambda_max, gets prior weight lambda_i (tau / r_i)^2:
+      // its step shrinks by r_i^2 / (r_i^2 + tau^2), nothing for r_i >> tau, all for r_i << tau.
+      if (params_.icp_degeneracy > 0.f) {
+        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(A);
+        const double lmax = std::max(es.eigenvalues()(5), 1e-30);
+        const double tau = params_.icp_degeneracy;
+        Eigen::Matrix<double, 6, 1> mu;
+        for (int i = 0; i < 6; ++i) {
+          const double r = std::max(es.eigenvalues()(i) / lmax, 1e-12);
+          mu(i) = lmax * tau * tau / r;
+        }
+        const Eigen::Matrix<double, 6, 6> P = es.eigenvectors() * mu.asDiagonal() * es.eigenvectors().transpose();
+        A += P;
+        b += P * xi_total;
+      }
       const Eigen::Matrix<double, 6, 1> xi = A.ldlt().solve(-b);
       if (!xi.allFinite()) break;
       const Eigen::Vector3d w = xi.head<3>();
@@ -260,6 +282,7 @@ Status Engine::Track(FrameResult* result) {
       if (angle > 1e-12) dT.topLeftCorner<3, 3>() = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
       dT.topRightCorner<3, 1>() = xi.tail<3>();
       T = dT * T;
+      xi_total += xi;
       if (xi.norm() < 1e-6) break;
     }
   }

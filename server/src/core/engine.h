@@ -41,6 +41,10 @@ struct EngineParams {
   float normal_max_jump = 0.05f;
   // ICP iterations per pyramid level, coarsest last (level 0 = full resolution).
   std::array<int, 3> icp_iterations = {10, 5, 4};
+  // Information ratio (eigenvalue / largest eigenvalue of the ICP normal equations) below which a
+  // pose direction counts as unobserved and is held at the last pose (a cylinder's spin about its
+  // axis, a plane sliding in itself); soft, 0 = off. Observed directions here are >= 8e-4.
+  float icp_degeneracy = 1e-4f;
   // Correspondences farther apart than this are rejected, metres.
   float icp_max_distance = 0.10f;
   // Correspondences whose normals differ by more than this are rejected, degrees.

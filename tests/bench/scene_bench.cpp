@@ -1,0 +1,62 @@
+// The whole engine on a synthetic scene against its ground truth: surface error, drift, non-rigid
+// displacement, per-stage ms, frames per second, active set size and device memory. Takes the
+// server's engine flags (vdeform-server --help), so any setting can be measured the way it runs.
+//   vd_scene_bench --scene tube [--voxel-size 0.004] [--frames 60] [--stride 1] [--rigid-only] ...
+#include <cstdio>
+
+#include "../engine/scene_eval.h"
+#include "server_options.h"
+#include "vd/common/log.h"
+
+int main(int argc, char** argv) {
+  vd::ServerOptions options;
+  std::string scene = "tube";
+  int64_t frames = 60, stride = 1;
+  bool verbose = false;
+  vd::FlagParser flags("vd_scene_bench: the engine on a synthetic scene against ground truth.\n"
+                       "  vd_scene_bench --scene NAME [engine flags as for vdeform-server]");
+  options.Register(&flags);
+  flags.AddString("scene", &scene, "Synthetic scene: tube, cloth or rigid");
+  flags.AddInt("frames", &frames, "Frames in one pass of the scene's motion");
+  flags.AddInt("feed-stride", &stride, "Feed every n-th frame (fast motion)");
+  flags.AddBool("verbose", &verbose, "One line per frame");
+  bool help = false;
+  vd::Status s = flags.Parse(argc, argv, &help);
+  if (help) {
+    std::printf("%s", flags.Help().c_str());
+    return 0;
+  }
+  if (!s.ok()) {
+    std::fprintf(stderr, "vd_scene_bench: %s\n", s.message().c_str());
+    return 2;
+  }
+  vd::SetLogLevel(vd::LogLevel::kWarning);
+  auto params = options.ToEngineParams();
+  if (!params.ok()) {
+    std::fprintf(stderr, "vd_scene_bench: %s\n", params.status().ToString().c_str());
+    return 2;
+  }
+  vd::test::SceneRun run;
+  run.name = scene;
+  run.params = *params;
+  run.num_frames = int(frames);
+  run.stride = int(stride);
+  run.verbose = verbose;
+  run.device = options.device;
+  auto e = vd::test::EvaluateScene(run);
+  if (!e.ok()) {
+    std::fprintf(stderr, "vd_scene_bench: %s\n", e.status().ToString().c_str());
+    return 1;
+  }
+  char label[160];
+  std::snprintf(label, sizeof label, "%s, %.1f mm, %s, %d frames (stride %d)", scene.c_str(),
+                run.params.voxel_size * 1000, run.params.rigid_only ? "rigid-only" : "non-rigid", e->frames,
+                run.stride);
+  vd::test::PrintErrors(label, *e);
+  std::printf("stages (mean ms):");
+  for (int i = 0; i < vd::StageTimes::kCount; ++i) std::printf(" %s %.1f |", vd::StageTimes::kNames[i], e->stage_ms[i]);
+  std::printf(" total %.1f ms = %.2f fps\n", e->total_ms, 1000.0 / std::max(1e-9, e->total_ms));
+  std::printf("active grid points (mean) %.0f, OpenCL buffers peak %.1f MB, resident peak %.1f MB\n",
+              e->mean_active_voxels, e->device_peak_bytes / 1e6, vd::PeakResidentBytes() / 1e6);
+  return 0;
+}
