@@ -21,6 +21,12 @@ void ServerOptions::Register(FlagParser* f) {
   f->AddString("icp-iterations", &icp_iterations, "Rigid ICP iterations per pyramid level, finest first");
   f->AddFloat("icp-degeneracy", &icp_degeneracy,
               "ICP information ratio below which a pose direction is held at the last pose (0 = off)");
+  f->AddInt("levels", &levels, "Levels of the non-rigid solver's coarse-to-fine hierarchy (1 = fine grid only)");
+  f->AddInt("outer-iterations", &outer_iterations,
+            "Non-rigid outer iterations per frame (new correspondences each; 0 = rigid tracking with the field kept)");
+  f->AddInt("flip-flop-iterations", &flip_flop_iterations, "Flip-flop iterations on the fine level per outer iteration");
+  f->AddInt("coarse-iterations", &coarse_iterations, "Flip-flop iterations on each coarse level per outer iteration");
+  f->AddInt("pcg-iterations", &pcg_iterations, "PCG iterations per position step (at most)");
   f->AddInt("count", &count, "Offline mode: process at most N frames (-1 = all)");
   f->AddInt("start", &start, "Offline mode: first frame index");
   f->AddInt("stride", &stride, "Offline mode: use every n-th frame");
@@ -48,6 +54,11 @@ StatusOr<EngineParams> ServerOptions::ToEngineParams() const {
   p.icp_iterations = {a, b, c};
   p.icp_degeneracy = float(icp_degeneracy);
   p.voxel_size = float(voxel_size);
+  p.solver.levels = int(levels);
+  p.nonrigid_outer_iterations = int(outer_iterations);
+  p.solver.flip_flop_iterations = int(flip_flop_iterations);
+  p.solver.coarse_flip_flop_iterations = int(coarse_iterations);
+  p.solver.pcg_iterations = int(pcg_iterations);
   p.min_depth = float(min_depth);
   p.max_depth = float(max_depth);
   p.max_grid_mb = max_grid_mb;

@@ -20,7 +20,13 @@ struct ServerOptions {
   double volume_margin = 0.10;
   // ICP iterations per pyramid level, finest first ("10,5,4").
   std::string icp_iterations = "10,5,4";
-  double icp_degeneracy = 1e-4;
+  double icp_degeneracy = 5e-5;
+  // Non-rigid solver (defaults from EngineParams / SolverParams).
+  int64_t levels = SolverParams().levels;
+  int64_t outer_iterations = EngineParams().nonrigid_outer_iterations;
+  int64_t flip_flop_iterations = SolverParams().flip_flop_iterations;
+  int64_t coarse_iterations = SolverParams().coarse_flip_flop_iterations;
+  int64_t pcg_iterations = SolverParams().pcg_iterations;
   int64_t count = -1;
   int64_t start = 0;
   int64_t stride = 1;

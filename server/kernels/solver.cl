@@ -55,16 +55,26 @@ __kernel void vd_constraint_residuals(__global const VdCorrespondence* cons, __g
   r[c] = vd_constraint_apply(cons[c], compact, vol, d);
 }
 
-__kernel void vd_system_rhs_diag(__global const int* list, __global const int* compact, VdVolume vol,
-                                 __global const int* neighbours, __global const VdCorrespondence* cons,
-                                 __global const uint* cell_start, __global const float* targets,
-                                 __global const float4* rot, __global const float4* x_prev, VdSolverWeights w,
-                                 __global float4* b, __global VdMat3* diag_inv, int vd_items) {
+/* Once per solve: the constraint-only part of b and the preconditioner. */
+__kernel void vd_system_data_diag_kernel(__global const int* list, __global const int* compact, VdVolume vol,
+                                         __global const int* neighbours, __global const VdCorrespondence* cons,
+                                         __global const uint* cell_start, __global const float* targets,
+                                         VdSolverWeights w, __global float4* data_rhs, __global VdMat3* diag_inv,
+                                         int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   VdMat3 inv;
-  b[k] = vd_system_rhs(k, list, compact, vol, neighbours, cons, cell_start, targets, rot, x_prev, w, &inv);
+  data_rhs[k] = vd_system_data_diag(k, list, compact, vol, neighbours, cons, cell_start, targets, w, &inv);
   diag_inv[k] = inv;
+}
+
+/* Every position step: b from the current rotations. */
+__kernel void vd_system_rhs_kernel(__global const int* list, VdVolume vol, __global const int* neighbours,
+                                   __global const float4* rot, __global const float4* data_rhs,
+                                   __global const float4* x_prev, VdSolverWeights w, __global float4* b, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  b[k] = vd_system_rhs(k, list, vol, neighbours, rot, data_rhs, x_prev, w);
 }
 
 __kernel void vd_system_apply_kernel(__global const int* list, __global const int* compact, VdVolume vol,
@@ -74,6 +84,22 @@ __kernel void vd_system_apply_kernel(__global const int* list, __global const in
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   q[k] = vd_system_apply(k, list, compact, vol, neighbours, cons, cell_start, r, d, w);
+}
+
+/* Cached B^T B: built once per solve, applied every PCG iteration. */
+__kernel void vd_btb_build_kernel(__global const int* list, __global const int* compact, VdVolume vol,
+                                  __global const VdCorrespondence* cons, __global const uint* cell_start,
+                                  VdSolverWeights w, __global float* blocks, __global int* nbr, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_btb_build(get_global_id(0), list, compact, vol, cons, cell_start, w, blocks, nbr);
+}
+
+__kernel void vd_system_apply_cached_kernel(__global const int* neighbours, __global const float* blocks,
+                                            __global const int* nbr, __global const float4* d, VdSolverWeights w,
+                                            __global float4* q, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  q[k] = vd_system_apply_cached(k, neighbours, blocks, nbr, d, w);
 }
 
 /* PCG vector updates. */

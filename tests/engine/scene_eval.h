@@ -74,7 +74,7 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
                   surface_mm, r.live_mesh.num_vertices(), static_cast<long long>(r.active_voxels), r.energy_initial,
                   r.energy_final, r.dense_correspondences);
     }
-    if (k == last) {
+    if (k == last || (run.verbose && k % 10 == 0)) {
       // Drift: canonical vertex -> material point on frame 0's true surface -> its true position now.
       double d = 0, nr = 0;
       const Eigen::Matrix4f cam_from_world = r.pose.inverse().cast<float>();
@@ -88,6 +88,9 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
       }
       out.last_drift_mm = 1000 * d / std::max<size_t>(1, r.live_mesh.num_vertices());
       out.last_nonrigid_mm = 1000 * nr / std::max<size_t>(1, r.live_mesh.num_vertices());
+      if (run.verbose)
+        std::printf("frame %3d: drift %.2f mm, mean non-rigid displacement %.2f mm\n", k, out.last_drift_mm,
+                    out.last_nonrigid_mm);
     }
   }
   const int n = std::max(1, out.frames);

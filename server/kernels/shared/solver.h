@@ -126,27 +126,114 @@ VD_INLINE vd_float4 vd_system_apply(int k, VD_GLOBAL const int* list, VD_GLOBAL 
   return q;
 }
 
-/* Right-hand side b_k (with rotations as quaternions) and the inverse of the 3x3 diagonal block
- * (the Jacobi preconditioner), given targets[c] = vd_constraint_target(c). */
-VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
-                                  VD_GLOBAL const int* neighbours, VD_GLOBAL const VdCorrespondence* cons,
-                                  VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* targets,
-                                  VD_GLOBAL const vd_float4* rot, VD_GLOBAL const vd_float4* x_prev,
-                                  VdSolverWeights w, VdMat3* diag_inv) {
-  int gx, gy, gz;
-  vd_grid_coords(list[k], vol, &gx, &gy, &gz);
-  vd_float4 rest_k = vd_rest_position(vol, gx, gy, gz);
+/* t^_k - t^_j for the neighbour in direction j (-x, +x, -y, +y, -z, +z) of a grid with spacing h:
+ * the rest edges of the 6-neighbourhood are axis-aligned, no grid coordinates needed. */
+VD_INLINE vd_float4 vd_neighbour_edge(int j, float h) {
+  float v = (j & 1) ? -h : h;
+  return VD_F4(j < 2 ? v : 0.0f, (j >> 1) == 1 ? v : 0.0f, j >= 4 ? v : 0.0f, 0.0f);
+}
+
+/* Cached B^T B (section 7.1: "we pre-compute and cache B^T B before the PCG iteration"): for
+ * point k and each of the 27 grid offsets o in {-1,0,1}^3, the 3x3 block
+ *   w_d sum_c w_c alpha_ck alpha_cj n_c n_c^T   (j = the point at offset o)
+ * over the constraints c in the cells both points are corners of. Each block is symmetric and
+ * stored as 6 floats (xx, xy, xz, yy, yz, zz): 162 floats per point, with the 27 compact
+ * neighbour indices (-1 outside M) beside them. The product then costs 27 small mat-vecs per point
+ * whatever the number of constraints, which matters on the coarse levels where a cell holds
+ * thousands of them. */
+#define VD_BTB_BLOCKS 27
+#define VD_BTB_FLOATS (6 * VD_BTB_BLOCKS)
+
+VD_INLINE void vd_btb_build(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
+                            VD_GLOBAL const VdCorrespondence* cons, VD_GLOBAL const vd_uint* cell_start,
+                            VdSolverWeights w, VD_GLOBAL float* blocks, VD_GLOBAL int* nbr) {
+  int x, y, z;
+  vd_grid_coords(list[k], vol, &x, &y, &z);
+  /* Accumulated in private memory, written once. */
+  float acc[VD_BTB_FLOATS];
+  for (int i = 0; i < VD_BTB_FLOATS; ++i) acc[i] = 0.0f;
+  for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
+    int nx = x + o % 3 - 1, ny = y + (o / 3) % 3 - 1, nz = z + o / 9 - 1;
+    int inside = nx >= 0 && ny >= 0 && nz >= 0 && nx < vol.dim_x && ny < vol.dim_y && nz < vol.dim_z;
+    nbr[VD_BTB_BLOCKS * k + o] = inside ? compact[vd_grid_index(vol, nx, ny, nz)] : -1;
+  }
+  for (int ok = 0; ok < 8; ++ok) {
+    int kx = ok & 1, ky = (ok >> 1) & 1, kz = (ok >> 2) & 1;
+    int cx = x - kx, cy = y - ky, cz = z - kz;
+    if (cx < 0 || cy < 0 || cz < 0 || cx > vol.dim_x - 2 || cy > vol.dim_y - 2 || cz > vol.dim_z - 2) continue;
+    int kc = compact[vd_grid_index(vol, cx, cy, cz)];
+    if (kc < 0) continue;
+    for (vd_uint c = cell_start[kc]; c < cell_start[kc + 1]; ++c) {
+      VdCorrespondence cc = cons[c];
+      float fx = cc.canonical.x - (float)cx, fy = cc.canonical.y - (float)cy, fz = cc.canonical.z - (float)cz;
+      float ak = (kx ? fx : 1.0f - fx) * (ky ? fy : 1.0f - fy) * (kz ? fz : 1.0f - fz);
+      float s = w.w_dense * cc.canonical.w * ak;
+      vd_float4 n = cc.normal;
+      float nn[6] = {n.x * n.x, n.x * n.y, n.x * n.z, n.y * n.y, n.y * n.z, n.z * n.z};
+      for (int oj = 0; oj < 8; ++oj) {
+        int jx = oj & 1, jy = (oj >> 1) & 1, jz = (oj >> 2) & 1;
+        float aj = (jx ? fx : 1.0f - fx) * (jy ? fy : 1.0f - fy) * (jz ? fz : 1.0f - fz);
+        int b = (jx - kx + 1) + 3 * (jy - ky + 1) + 9 * (jz - kz + 1);
+        for (int e = 0; e < 6; ++e) acc[6 * b + e] += s * aj * nn[e];
+      }
+    }
+  }
+  VD_GLOBAL float* out = blocks + (size_t)VD_BTB_FLOATS * (size_t)k;
+  for (int i = 0; i < VD_BTB_FLOATS; ++i) out[i] = acc[i];
+}
+
+/* (w_d B^T B d)_k from the cached blocks. */
+VD_INLINE vd_float4 vd_btb_apply(int k, VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
+                                 VD_GLOBAL const vd_float4* d) {
+  VD_GLOBAL const float* m = blocks + (size_t)VD_BTB_FLOATS * (size_t)k;
+  float qx = 0.0f, qy = 0.0f, qz = 0.0f;
+  for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
+    int j = nbr[VD_BTB_BLOCKS * k + o];
+    if (j < 0) continue;
+    vd_float4 v = d[j];
+    VD_GLOBAL const float* b = m + 6 * o;
+    qx += b[0] * v.x + b[1] * v.y + b[2] * v.z;
+    qy += b[1] * v.x + b[3] * v.y + b[4] * v.z;
+    qz += b[2] * v.x + b[4] * v.y + b[5] * v.z;
+  }
+  return VD_F4(qx, qy, qz, 0.0f);
+}
+
+/* A d at point k with the cached B^T B. */
+VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* blocks,
+                                           VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
+  vd_float4 q = vd_laplacian_apply(k, neighbours, d) * (2.0f * w.w_reg) + vd_btb_apply(k, blocks, nbr, d) +
+                d[k] * w.damping;
+  q.w = 0.0f;
+  return q;
+}
+
+/* The ARAP part of the right-hand side at point k: sum_j (R_k + R_j)(t^_k - t^_j) (times w_r by
+ * the caller). It changes with the rotations, so it is recomputed every position step. */
+VD_INLINE vd_float4 vd_system_reg_rhs(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
+                                      VD_GLOBAL const vd_float4* rot) {
   vd_float4 reg = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  int degree = 0;
+  vd_float4 rk = rot[k];
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
     if (nb < 0) continue;
-    ++degree;
-    int hx, hy, hz;
-    vd_grid_coords(list[nb], vol, &hx, &hy, &hz);
-    vd_float4 e = rest_k - vd_rest_position(vol, hx, hy, hz);
-    reg = reg + vd_quat_rotate(rot[k], e) + vd_quat_rotate(rot[nb], e);
+    vd_float4 e = vd_neighbour_edge(j, vol.voxel_size);
+    reg = reg + vd_quat_rotate(rk, e) + vd_quat_rotate(rot[nb], e);
   }
+  reg.w = 0.0f;
+  return reg;
+}
+
+/* The parts of the system at point k that depend only on the constraints, computed once per
+ * solve (the paper caches B^T B for the same reason): the data right-hand side
+ * w_d sum_c alpha_ck n_c (w_c n_c . p_c) (returned) and the inverse of the 3x3 diagonal block
+ * 2 w_r deg_k I + w_d sum_c w_c alpha_ck^2 n_c n_c^T + lambda I, the Jacobi preconditioner. */
+VD_INLINE vd_float4 vd_system_data_diag(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
+                                        VD_GLOBAL const int* neighbours, VD_GLOBAL const VdCorrespondence* cons,
+                                        VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* targets,
+                                        VdSolverWeights w, VdMat3* diag_inv) {
+  int degree = 0;
+  for (int j = 0; j < 6; ++j) degree += neighbours[6 * k + j] >= 0;
   VdMat3 diag = vd_mat3_zero();
   vd_float4 data = vd_gather_constraints(k, list, compact, vol, cons, cell_start, targets, &diag);
   float s = 2.0f * w.w_reg * (float)degree + w.damping;
@@ -167,7 +254,16 @@ VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VD_GLOBAL co
   inv.m[7] = (diag.m[1] * diag.m[6] - diag.m[0] * diag.m[7]) / det;
   inv.m[8] = (diag.m[0] * diag.m[4] - diag.m[1] * diag.m[3]) / det;
   *diag_inv = inv;
-  vd_float4 b = reg * w.w_reg + data * w.w_dense + x_prev[k] * w.damping;
+  data = data * w.w_dense;
+  data.w = 0.0f;
+  return data;
+}
+
+/* Right-hand side b_k = w_r reg_k + data_k + lambda x_prev_k, from the cached data part. */
+VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
+                                  VD_GLOBAL const vd_float4* rot, VD_GLOBAL const vd_float4* data_rhs,
+                                  VD_GLOBAL const vd_float4* x_prev, VdSolverWeights w) {
+  vd_float4 b = vd_system_reg_rhs(k, list, vol, neighbours, rot) * w.w_reg + data_rhs[k] + x_prev[k] * w.damping;
   b.w = 0.0f;
   return b;
 }
@@ -187,16 +283,11 @@ VD_INLINE float vd_constraint_energy(VdCorrespondence c, VD_GLOBAL const int* co
 
 VD_INLINE float vd_arap_energy(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* neighbours, VdVolume vol,
                                VD_GLOBAL const vd_float4* x, VD_GLOBAL const vd_float4* rot) {
-  int gx, gy, gz;
-  vd_grid_coords(list[k], vol, &gx, &gy, &gz);
-  vd_float4 rest_k = vd_rest_position(vol, gx, gy, gz);
   float e = 0.0f;
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
     if (nb < 0) continue;
-    int hx, hy, hz;
-    vd_grid_coords(list[nb], vol, &hx, &hy, &hz);
-    vd_float4 d = (x[k] - x[nb]) - vd_quat_rotate(rot[k], rest_k - vd_rest_position(vol, hx, hy, hz));
+    vd_float4 d = (x[k] - x[nb]) - vd_quat_rotate(rot[k], vd_neighbour_edge(j, vol.voxel_size));
     d.w = 0.0f;
     e += vd_dot3(d, d);
   }

@@ -103,7 +103,7 @@ StatusOr<std::unique_ptr<Engine>> Engine::Create(const EngineParams& params, con
 }
 
 Engine::Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx)
-    : params_(params), ctx_(std::move(ctx)), ops_(ctx_.get()), solver_(std::make_unique<DeviceSolver>(&ops_)) {}
+    : params_(params), ctx_(std::move(ctx)), ops_(ctx_.get()), solver_(std::make_unique<HierarchicalSolver>(&ops_)) {}
 
 void Engine::Reset() {
   initialised_ = false;
@@ -373,6 +373,7 @@ Status Engine::NonRigid(FrameResult* result) {
   // M from the surface extracted after the last frame; new members start from the field.
   VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_));
   VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
+  VD_RETURN_IF_ERROR(solver_->Prepare(volume_, active_, params_.solver.levels));
   const size_t pixels = static_cast<size_t>(cam_.width) * cam_.height;
   VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, pixels));
   VdCorrParams cp{};
@@ -386,8 +387,7 @@ Status Engine::NonRigid(FrameResult* result) {
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
     VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
     VD_RETURN_IF_ERROR(ops_.Correspondences(live_, vmap_[0], nmap_[0], mesh_, cp, corr_));
-    VD_RETURN_IF_ERROR(solver_->Setup(volume_, active_, corr_, pixels, params_.solver));
-    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve());
+    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, pixels, params_.solver));
     VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
     if (outer == 0) result->energy_initial = summary.energy_initial;
     result->energy_final = summary.energy_final;

@@ -22,6 +22,9 @@ Status SolverParams::Validate() const {
     return bad("flip_flop_iterations", flip_flop_iterations, "1 <= n <= 100");
   if (!(pcg_iterations >= 1 && pcg_iterations <= 1000)) return bad("pcg_iterations", pcg_iterations, "1 <= n <= 1000");
   if (!(pcg_tolerance > 0.f && pcg_tolerance < 1.f)) return bad("pcg_tolerance", pcg_tolerance, "0 < tol < 1");
+  if (!(levels >= 1 && levels <= 5)) return bad("levels", levels, "1 <= levels <= 5");
+  if (!(coarse_flip_flop_iterations >= 0 && coarse_flip_flop_iterations <= 100))
+    return bad("coarse_flip_flop_iterations", coarse_flip_flop_iterations, "0 <= n <= 100");
   return Status::Ok();
 }
 
@@ -36,20 +39,34 @@ VdSolverWeights DeviceSolver::Weights() const {
 Status DeviceSolver::Setup(const DeviceVolume& v, const DeviceActiveSet& active,
                            const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels,
                            const SolverParams& params) {
-  VD_RETURN_IF_ERROR(params.Validate());
   if (!v.has_deformation()) return FailedPrecondition("the solver needs a grid with a deformation field");
+  VD_RETURN_IF_ERROR(SetupConstraints(v.vol, active, per_pixel, num_pixels, params));
+  return ops_->ctx().Run("vd_solver_gather_state", m_, active.list, v.def_pos, v.def_rot, x_, rot_);
+}
+
+Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0) {
+  ocl::Context& ctx = ops_->ctx();
+  if (m_ == 0) return Status::Ok();
+  VD_RETURN_IF_ERROR(ctx.Copy(x0, x_, m_));
+  return ctx.Fill(rot_, VD_F4(0.f, 0.f, 0.f, 1.f), m_);
+}
+
+Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
+                                      const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels,
+                                      const SolverParams& params) {
+  VD_RETURN_IF_ERROR(params.Validate());
   ocl::Context& ctx = ops_->ctx();
   params_ = params;
-  vol_ = v.vol;
+  vol_ = vol;
   active_ = &active;
   m_ = active.count;
-  for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &z_, &p_, &q_}) VD_RETURN_IF_ERROR(ctx.Reserve(b, std::max<size_t>(m_, 1)));
+  for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &z_, &p_, &q_, &data_rhs_}) VD_RETURN_IF_ERROR(ctx.Reserve(b, std::max<size_t>(m_, 1)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&diag_inv_, std::max<size_t>(m_, 1)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_count_, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_start_, m_ + 1));
-  VD_RETURN_IF_ERROR(ctx.Reserve(&cell_of_, num_pixels));
-  VD_RETURN_IF_ERROR(ctx.Run("vd_solver_gather_state", m_, active.list, v.def_pos, v.def_rot, x_, rot_));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&cell_of_, std::max<size_t>(num_pixels, 1)));
   VD_RETURN_IF_ERROR(ctx.Run("vd_solver_rest", m_, active.list, vol_, rest_));
+
   // Counting sort of the constraints by cell.
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_count", num_pixels, per_pixel, active.compact, vol_, cell_of_, cell_count_));
@@ -61,7 +78,15 @@ Status DeviceSolver::Setup(const DeviceVolume& v, const DeviceActiveSet& active,
   VD_RETURN_IF_ERROR(ctx.Reserve(&residuals_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_scatter", num_pixels, per_pixel, cell_of_, cell_start_, cell_count_, cons_));
-  return ctx.Run("vd_constraint_targets", total, cons_, targets_);
+  VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_targets", total, cons_, targets_));
+  if (cache_btb_) {
+    VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * std::max<size_t>(m_, 1)));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * std::max<size_t>(m_, 1)));
+    VD_RETURN_IF_ERROR(ctx.Run("vd_btb_build_kernel", m_, active.list, active.compact, vol_, cons_, cell_start_,
+                               Weights(), btb_, btb_nbr_));
+  }
+  return ctx.Run("vd_system_data_diag_kernel", m_, active.list, active.compact, vol_, active.neighbours, cons_,
+                 cell_start_, targets_, Weights(), data_rhs_, diag_inv_);
 }
 
 StatusOr<double> DeviceSolver::SumPartials(size_t groups) {
@@ -79,19 +104,25 @@ StatusOr<double> DeviceSolver::Dot(const ocl::Buffer<vd_float4>& a, const ocl::B
   return SumPartials(groups);
 }
 
+Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float4>& q) {
+  ocl::Context& ctx = ops_->ctx();
+  const auto& a = *active_;
+  const VdSolverWeights w = Weights();
+  if (cache_btb_) return ctx.Run("vd_system_apply_cached_kernel", m_, a.neighbours, btb_, btb_nbr_, d, w, q);
+  VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_residuals", num_constraints_, cons_, a.compact, vol_, d, residuals_));
+  return ctx.Run("vd_system_apply_kernel", m_, a.list, a.compact, vol_, a.neighbours, cons_, cell_start_, residuals_, d,
+                 w, q);
+}
+
 StatusOr<int> DeviceSolver::PositionStep() {
   if (m_ == 0) return 0;
   ocl::Context& ctx = ops_->ctx();
   const VdSolverWeights w = Weights();
   const auto& a = *active_;
-  const int nc = int(num_constraints_);
   VD_RETURN_IF_ERROR(ctx.Copy(x_, x_prev_, m_));
-  VD_RETURN_IF_ERROR(ctx.Run("vd_system_rhs_diag", m_, a.list, a.compact, vol_, a.neighbours, cons_, cell_start_,
-                             targets_, rot_, x_prev_, w, b_, diag_inv_));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_system_rhs_kernel", m_, a.list, vol_, a.neighbours, rot_, data_rhs_, x_prev_, w, b_));
   // r = b - A x
-  VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_residuals", nc, cons_, a.compact, vol_, x_, residuals_));
-  VD_RETURN_IF_ERROR(ctx.Run("vd_system_apply_kernel", m_, a.list, a.compact, vol_, a.neighbours, cons_, cell_start_,
-                             residuals_, x_, w, r_));
+  VD_RETURN_IF_ERROR(Apply(x_, r_));
   VD_RETURN_IF_ERROR(ctx.Run("vd_sub_from4", m_, b_, r_));
   VD_RETURN_IF_ERROR(ctx.Run("vd_pcg_precondition", m_, diag_inv_, r_, z_));
   VD_RETURN_IF_ERROR(ctx.Copy(z_, p_, m_));
@@ -102,9 +133,7 @@ StatusOr<int> DeviceSolver::PositionStep() {
   for (; it < params_.pcg_iterations; ++it) {
     VD_ASSIGN_OR_RETURN(double rr, Dot(r_, r_));
     if (rr <= stop) break;
-    VD_RETURN_IF_ERROR(ctx.Run("vd_constraint_residuals", nc, cons_, a.compact, vol_, p_, residuals_));
-    VD_RETURN_IF_ERROR(ctx.Run("vd_system_apply_kernel", m_, a.list, a.compact, vol_, a.neighbours, cons_,
-                               cell_start_, residuals_, p_, w, q_));
+    VD_RETURN_IF_ERROR(Apply(p_, q_));
     VD_ASSIGN_OR_RETURN(double pq, Dot(p_, q_));
     if (!(pq > 0.0)) break;
     const float alpha = float(rz / pq);
@@ -143,17 +172,22 @@ StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {
   return params_.w_dense * ed + params_.w_reg * er;
 }
 
-StatusOr<SolverSummary> DeviceSolver::Solve() {
+StatusOr<SolverSummary> DeviceSolver::Solve(int iterations, bool energies) {
   SolverSummary s;
   s.constraints = int(num_constraints_);
   s.active_points = int(m_);
-  VD_ASSIGN_OR_RETURN(s.energy_initial, Energy());
-  for (int i = 0; i < params_.flip_flop_iterations; ++i) {
+  if (energies) {
+    VD_ASSIGN_OR_RETURN(s.energy_initial, Energy());
+  }
+  const int n = iterations >= 0 ? iterations : params_.flip_flop_iterations;
+  for (int i = 0; i < n; ++i) {
     VD_ASSIGN_OR_RETURN(int it, PositionStep());
     s.pcg_iterations += it;
     VD_RETURN_IF_ERROR(RotationStep());
   }
-  VD_ASSIGN_OR_RETURN(s.energy_final, Energy());
+  if (energies) {
+    VD_ASSIGN_OR_RETURN(s.energy_final, Energy());
+  }
   return s;
 }
 

@@ -16,8 +16,17 @@ struct SolverParams {
   float w_reg = 2.f;
   // Damping towards the current positions, relative to w_reg: keeps parts without data still.
   float damping = 1e-4f;
-  // Flip-flop iterations (position step + rotation step) per solve.
-  int flip_flop_iterations = 4;
+  // Flip-flop iterations (position step + rotation step) per solve, on the finest level; with the
+  // coarse levels in front, 2 reach what 4-8 did on one level (docs/BENCHMARKS.md).
+  int flip_flop_iterations = 2;
+  // Levels of the nested coarse-to-fine hierarchy (section 7.2): 1 = the fine grid only; level l
+  // has 2^l times the voxel spacing. Coarse levels run coarse_flip_flop_iterations each.
+  int levels = 3;
+  int coarse_flip_flop_iterations = 4;
+  // Pre-compute and cache B^T B as 27 3x3 blocks per point before the PCG iterations (section
+  // 7.1) instead of applying it from the constraints every iteration; per level kind.
+  bool cache_btb_coarse = true;
+  bool cache_btb_fine = true;
   // PCG iterations per position step, and the relative residual at which it stops early.
   int pcg_iterations = 20;
   float pcg_tolerance = 1e-4f;
@@ -36,24 +45,35 @@ struct SolverSummary {
 class DeviceSolver {
  public:
   explicit DeviceSolver(DeviceOps* ops) : ops_(ops) {}
+  // Apply B^T B from cached blocks (built in Setup) rather than from the constraints.
+  void set_cache_btb(bool on) { cache_btb_ = on; }
 
   // Groups the valid per-pixel constraints by cell and copies the active points' state.
   Status Setup(const DeviceVolume& v, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
                size_t num_pixels, const SolverParams& params);
+  // The two halves of Setup for a grid level without a stored field (coarse levels): constraints
+  // grouped by the cells of `vol`, then positions x0 with identity rotations.
+  Status SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
+                          const ocl::Buffer<VdCorrespondence>& constraints, size_t n, const SolverParams& params);
+  Status InitState(const ocl::Buffer<vd_float4>& x0);
   // Position step: PCG from the current positions; returns the iterations used.
   StatusOr<int> PositionStep();
   // Rotation step: Procrustes for every active point.
   Status RotationStep();
   // E_total at the current state, and its two parts.
   StatusOr<double> Energy(double* dense = nullptr, double* reg = nullptr);
-  // Runs flip_flop_iterations of (positions, rotations).
-  StatusOr<SolverSummary> Solve();
+  // Runs `iterations` (default flip_flop_iterations) of (positions, rotations); the energies are
+  // evaluated only when asked for.
+  StatusOr<SolverSummary> Solve(int iterations = -1, bool energies = true);
   // Writes positions and rotations back into the grid (counting the optimisation).
   Status WriteBack(DeviceVolume& v);
 
   size_t num_constraints() const { return num_constraints_; }
   // The current compact state (tests).
   const ocl::Buffer<vd_float4>& positions() const { return x_; }
+  ocl::Buffer<vd_float4>& mutable_positions() { return x_; }
+  // Constraints sorted by cell (num_constraints() of them).
+  const ocl::Buffer<VdCorrespondence>& constraints() const { return cons_; }
   const ocl::Buffer<vd_float4>& rotations() const { return rot_; }
 
  private:
@@ -74,6 +94,13 @@ class DeviceSolver {
   ocl::Buffer<float> targets_;
   ocl::Buffer<float> residuals_;
   ocl::Buffer<vd_float4> x_, x_prev_, rot_, rest_, b_, r_, z_, p_, q_;
+  bool cache_btb_ = false;
+  ocl::Buffer<float> btb_;
+  ocl::Buffer<int32_t> btb_nbr_;
+  // A d into q (both paths).
+  Status Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float4>& q);
+  // Constraint-only part of b, fixed per solve.
+  ocl::Buffer<vd_float4> data_rhs_;
   ocl::Buffer<VdMat3> diag_inv_;
   ocl::Buffer<float> partials_;
   std::vector<float> partials_host_;

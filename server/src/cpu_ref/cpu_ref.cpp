@@ -5,6 +5,7 @@
 #include "core/mc_table.h"
 #include "shared/active_set.h"
 #include "shared/deformation.h"
+#include "shared/hierarchy.h"
 #include "shared/marching_cubes.h"
 #include "shared/preprocess.h"
 #include "shared/raster.h"
@@ -140,6 +141,53 @@ ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol) {
     vd_active_neighbours_of(out.compact.data(), vol, x, yz % vol.dim_y, yz / vol.dim_y, &out.neighbours[6 * k]);
   }
   return out;
+}
+
+ActiveSet BuildLevel(const std::vector<int32_t>& fine_list, VdVolume fine, int s, VdVolume coarse) {
+  const int n = coarse.dim_x * coarse.dim_y * coarse.dim_z;
+  std::vector<uint8_t> member(n, 0);
+  for (int i : fine_list) {
+    int x, y, z;
+    vd_grid_coords(i, fine, &x, &y, &z);
+    for (int o = 0; o < 8; ++o) member[vd_level_corner_index(x, y, z, s, coarse, o)] = 1;
+  }
+  ActiveSet out;
+  out.compact.assign(n, -1);
+  for (int i = 0; i < n; ++i) {
+    if (!member[i]) continue;
+    out.compact[i] = int32_t(out.list.size());
+    out.list.push_back(i);
+  }
+  out.neighbours.resize(6 * out.list.size());
+  for (size_t k = 0; k < out.list.size(); ++k) {
+    int x, y, z;
+    vd_grid_coords(out.list[k], coarse, &x, &y, &z);
+    vd_active_neighbours_of(out.compact.data(), coarse, x, y, z, &out.neighbours[6 * k]);
+  }
+  return out;
+}
+
+void LevelRestrict(const ActiveSet& level, VdVolume coarse, int s, const int32_t* compact_f, VdVolume fine,
+                   const vd_float4* x_f, vd_float4* x0_c) {
+  const int m = int(level.list.size());
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k) x0_c[k] = vd_level_restrict(k, level.list.data(), coarse, s, compact_f, fine, x_f);
+}
+
+void LevelConstraints(const VdCorrespondence* cons_f, int n, const int32_t* compact_f, VdVolume fine,
+                      const vd_float4* x_f, int s, const int32_t* compact_c, VdVolume coarse, const vd_float4* x0_c,
+                      VdCorrespondence* cons_c) {
+#pragma omp parallel for schedule(static)
+  for (int c = 0; c < n; ++c)
+    cons_c[c] = vd_level_constraint(cons_f[c], compact_f, fine, x_f, s, compact_c, coarse, x0_c);
+}
+
+void LevelProlongate(const std::vector<int32_t>& fine_list, VdVolume fine, int s, const int32_t* compact_c,
+                     VdVolume coarse, const vd_float4* x_c, const vd_float4* x0_c, vd_float4* x_f) {
+  const int m = int(fine_list.size());
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k)
+    x_f[k] = x_f[k] + vd_level_prolongate(k, fine_list.data(), fine, s, compact_c, coarse, x_c, x0_c);
 }
 
 void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32_t* triangles, int num_triangles,

@@ -44,6 +44,18 @@ struct ActiveSet {
 // Independent of the device's scan: a sequential compaction over the same per-point tests.
 ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol);
 
+// A coarse level of the solver's hierarchy (shared/hierarchy.h) at spacing s, from the fine
+// active list: sequential marking and compaction, independent of the device's scan.
+ActiveSet BuildLevel(const std::vector<int32_t>& fine_list, VdVolume fine, int s, VdVolume coarse);
+void LevelRestrict(const ActiveSet& level, VdVolume coarse, int s, const int32_t* compact_f, VdVolume fine,
+                   const vd_float4* x_f, vd_float4* x0_c);
+void LevelConstraints(const VdCorrespondence* cons_f, int n, const int32_t* compact_f, VdVolume fine,
+                      const vd_float4* x_f, int s, const int32_t* compact_c, VdVolume coarse, const vd_float4* x0_c,
+                      VdCorrespondence* cons_c);
+// Adds the prolongated coarse increment to every fine active point.
+void LevelProlongate(const std::vector<int32_t>& fine_list, VdVolume fine, int s, const int32_t* compact_c,
+                     VdVolume coarse, const vd_float4* x_c, const vd_float4* x0_c, vd_float4* x_f);
+
 struct RasterMaps {
   std::vector<uint32_t> depth_bits;
   std::vector<uint32_t> ids;

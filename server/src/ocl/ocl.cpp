@@ -1,6 +1,8 @@
 #include "ocl/ocl.h"
 
 #include <algorithm>
+#include <chrono>
+#include <cstdio>
 #include <cctype>
 #include <cstdlib>
 #include <cstring>
@@ -259,6 +261,13 @@ StatusOr<std::unique_ptr<Context>> Context::Create(const std::string& spec) {
 }
 
 Context::~Context() {
+  if (!profile_.empty()) {
+    std::vector<std::pair<double, std::string>> rows;
+    for (const auto& [name, e] : profile_) rows.emplace_back(e.first, name);
+    std::sort(rows.rbegin(), rows.rend());
+    std::fprintf(stderr, "kernel profile (ms total, launches):\n");
+    for (const auto& [ms, name] : rows) std::fprintf(stderr, "  %-32s %10.1f %8lld\n", name.c_str(), ms, profile_[name].second);
+  }
   for (auto& [name, k] : kernels_) clReleaseKernel(k);
   if (program_) clReleaseProgram(program_);
   if (queue_) clReleaseCommandQueue(queue_);
@@ -308,8 +317,19 @@ StatusOr<cl_kernel> Context::Kernel(const char* name) {
 Status Context::Enqueue(cl_kernel k, const char* name, size_t items) {
   const size_t local = kGroupSize;
   const size_t global = (items + local - 1) / local * local;
+  // Development profile ($VD_PROFILE_KERNELS set): every launch waits for the device and its wall
+  // time is summed per kernel; the totals are printed when the context goes away.
+  const bool profile = profile_enabled_;
+  const auto t0 = std::chrono::steady_clock::now();
+  if (profile) clFinish(queue_);
   cl_int err = clEnqueueNDRangeKernel(queue_, k, 1, nullptr, &global, &local, 0, nullptr, nullptr);
   if (err != CL_SUCCESS) return ClError(err, (std::string("clEnqueueNDRangeKernel ") + name).c_str(), __FILE__, __LINE__);
+  if (profile) {
+    clFinish(queue_);
+    auto& e = profile_[name];
+    e.first += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    e.second += 1;
+  }
   return Status::Ok();
 }
 

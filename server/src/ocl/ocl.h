@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <climits>
 #include <cstdint>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -211,6 +212,8 @@ class Context {
   std::mutex kernels_mutex_;
   size_t allocated_bytes_ = 0;
   size_t peak_bytes_ = 0;
+  bool profile_enabled_ = std::getenv("VD_PROFILE_KERNELS") != nullptr;
+  std::map<std::string, std::pair<double, long long>> profile_;
 };
 
 // The program source: embedded kernels with their shared headers inlined, or the files under

@@ -1,0 +1,94 @@
+#include "core/hierarchy.h"
+
+namespace vd {
+
+VdVolume LevelVolume(const VdVolume& fine, int s) {
+  VdVolume c = fine;
+  c.voxel_size = fine.voxel_size * float(s);
+  c.dim_x = (fine.dim_x - 1) / s + 2;
+  c.dim_y = (fine.dim_y - 1) / s + 2;
+  c.dim_z = (fine.dim_z - 1) / s + 2;
+  return c;
+}
+
+Status HierarchicalSolver::BuildLevel(const DeviceVolume& v, const DeviceActiveSet& fine, Level* L) {
+  ocl::Context& ctx = ops_->ctx();
+  L->vol = LevelVolume(v.vol, L->spacing);
+  const size_t n = size_t(L->vol.dim_x) * L->vol.dim_y * L->vol.dim_z, rows = size_t(L->vol.dim_y) * L->vol.dim_z;
+  VD_RETURN_IF_ERROR(ctx.Reserve(&L->member, n));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&L->row_count, rows));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&L->row_offset, rows + 1));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&L->active.compact, n));
+  VD_RETURN_IF_ERROR(ctx.Fill(L->member, uint8_t(0), n));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_level_mark", fine.count, fine.list, v.vol, L->spacing, L->vol, L->member));
+  VD_RETURN_IF_ERROR(ctx.Run("vd_level_row_count", rows, L->member, L->vol, L->row_count));
+  uint32_t total = 0;
+  VD_RETURN_IF_ERROR(ops_->ScanExclusive(L->row_count, rows, L->row_offset, &total));
+  L->active.count = total;
+  VD_RETURN_IF_ERROR(ctx.Reserve(&L->active.list, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&L->active.neighbours, 6 * std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&L->x0, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(
+      ctx.Run("vd_active_compact", rows, L->member, L->row_offset, L->vol, L->active.list, L->active.compact));
+  return ctx.Run("vd_active_neighbours", total, L->active.list, L->active.compact, L->vol, L->active.neighbours);
+}
+
+Status HierarchicalSolver::Prepare(const DeviceVolume& v, const DeviceActiveSet& fine, int levels) {
+  fine_active_ = &fine;
+  while (int(levels_.size()) < levels - 1) levels_.push_back(std::make_unique<Level>(ops_));
+  levels_.resize(std::max(0, levels - 1));
+  for (size_t i = 0; i < levels_.size(); ++i) {
+    levels_[i]->spacing = 2 << i;
+    VD_RETURN_IF_ERROR(BuildLevel(v, fine, levels_[i].get()));
+  }
+  return Status::Ok();
+}
+
+StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
+                                                  const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n,
+                                                  const SolverParams& params) {
+  if (!fine_active_) return FailedPrecondition("HierarchicalSolver::Solve before Prepare");
+  ocl::Context& ctx = ops_->ctx();
+  fine_.set_cache_btb(params.cache_btb_fine);
+  VD_RETURN_IF_ERROR(fine_.Setup(v, *fine_active_, per_pixel, n, params));
+  SolverSummary summary;
+  VD_ASSIGN_OR_RETURN(summary.energy_initial, fine_.Energy());
+
+  const size_t nc = fine_.num_constraints();
+  const bool coarse = !levels_.empty() && params.coarse_flip_flop_iterations > 0 && nc > 0;
+  if (coarse) {
+    // Coarsest first; each level restricts the current fine state, so it solves for what the
+    // coarser levels left.
+    for (int i = int(levels_.size()) - 1; i >= 0; --i) {
+      Level& L = *levels_[i];
+      if (L.active.count == 0) continue;
+      const int s = L.spacing;
+      VD_RETURN_IF_ERROR(ctx.Run("vd_level_restrict_kernel", L.active.count, L.active.list, L.vol, s,
+                                 fine_active_->compact, v.vol, fine_.positions(), L.x0));
+      VD_RETURN_IF_ERROR(ctx.Reserve(&L.cons, std::max<size_t>(nc, 1)));
+      VD_RETURN_IF_ERROR(ctx.Run("vd_level_constraints", nc, fine_.constraints(), fine_active_->compact, v.vol,
+                                 fine_.positions(), s, L.active.compact, L.vol, L.x0, L.cons));
+      L.solver.set_cache_btb(params.cache_btb_coarse);
+      VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.vol, L.active, L.cons, nc, params));
+      VD_RETURN_IF_ERROR(L.solver.InitState(L.x0));
+      // Rotations of the restricted state first, then the flip-flop.
+      VD_RETURN_IF_ERROR(L.solver.RotationStep());
+      VD_ASSIGN_OR_RETURN(SolverSummary ls, L.solver.Solve(params.coarse_flip_flop_iterations, false));
+
+      summary.pcg_iterations += ls.pcg_iterations;
+      VD_RETURN_IF_ERROR(ctx.Run("vd_level_prolongate_kernel", fine_active_->count, fine_active_->list, v.vol, s,
+                                 L.active.compact, L.vol, L.solver.positions(), L.x0, fine_.mutable_positions()));
+    }
+    // The fine rotations follow the prolongated positions before the fine flip-flop.
+    VD_RETURN_IF_ERROR(fine_.RotationStep());
+  }
+  VD_ASSIGN_OR_RETURN(SolverSummary fs, fine_.Solve(params.flip_flop_iterations, false));
+
+  summary.constraints = fs.constraints;
+  summary.active_points = fs.active_points;
+  summary.pcg_iterations += fs.pcg_iterations;
+  VD_ASSIGN_OR_RETURN(summary.energy_final, fine_.Energy());
+  return summary;
+}
+
+}  // namespace vd

@@ -1,0 +1,58 @@
+#pragma once
+// The nested coarse-to-fine solver (VolumeDeform section 7.2; docs/NONRIGID.md "Hierarchy"):
+// coarse levels of 2^l times the voxel spacing are built from the fine active set every frame,
+// solve for an increment of the field with all constraints re-expressed on their grid
+// (shared/hierarchy.h), and jump-start the finer solve by prolongating that increment.
+#include <memory>
+#include <vector>
+
+#include "core/solver.h"
+
+namespace vd {
+
+class HierarchicalSolver {
+ public:
+  explicit HierarchicalSolver(DeviceOps* ops) : ops_(ops), fine_(ops) {}
+
+  // Builds levels 1 .. levels-1 from the fine active set (once per frame: M changes per frame only).
+  Status Prepare(const DeviceVolume& v, const DeviceActiveSet& fine, int levels);
+  // One non-linear solve from the field's current state: coarse levels first, then the fine level.
+  // Energies are the fine level's E_total before and after.
+  StatusOr<SolverSummary> Solve(const DeviceVolume& v, const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n,
+                                const SolverParams& params);
+  Status WriteBack(DeviceVolume& v) { return fine_.WriteBack(v); }
+
+  int num_levels() const { return 1 + int(levels_.size()); }
+  // Active points of level l (0 = fine).
+  size_t active_points(int l) const { return l == 0 ? (fine_active_ ? fine_active_->count : 0) : levels_[l - 1]->active.count; }
+  DeviceSolver& fine() { return fine_; }
+  // Level l >= 1 (tests).
+  const DeviceActiveSet& level_active(int l) const { return levels_[l - 1]->active; }
+  const VdVolume& level_volume(int l) const { return levels_[l - 1]->vol; }
+
+ private:
+  struct Level {
+    explicit Level(DeviceOps* ops) : solver(ops) {}
+    int spacing = 2;
+    VdVolume vol{};
+    DeviceActiveSet active;
+    ocl::Buffer<uint8_t> member;
+    ocl::Buffer<uint32_t> row_count, row_offset;
+    // Restricted starting positions and the constraints re-expressed on this level.
+    ocl::Buffer<vd_float4> x0;
+    ocl::Buffer<VdCorrespondence> cons;
+    DeviceSolver solver;
+  };
+  Status BuildLevel(const DeviceVolume& v, const DeviceActiveSet& fine, Level* level);
+
+  DeviceOps* ops_;
+  DeviceSolver fine_;
+  const DeviceActiveSet* fine_active_ = nullptr;
+  std::vector<std::unique_ptr<Level>> levels_;
+};
+
+// The grid of level l (spacing s = 2^l): same origin, s times the voxel size, enough points that
+// every fine grid point lies in a coarse cell.
+VdVolume LevelVolume(const VdVolume& fine, int spacing);
+
+}  // namespace vd

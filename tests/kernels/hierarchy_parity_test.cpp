@@ -1,0 +1,202 @@
+// The coarse levels of the non-rigid solver (shared/hierarchy.h): level active sets, restriction,
+// constraint re-expression and prolongation on the device against their CPU references, plus the
+// exact cases the formulation promises (a translated field restricts, re-expresses and
+// prolongates without loss).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/hierarchy.h"
+#include "cpu_ref/cpu_ref.h"
+#include "test_scenes.h"
+
+namespace vd {
+namespace {
+
+using test::AllClose;
+using test::Flatten;
+using test::FromDevice;
+using test::ToDevice;
+
+struct Fixture {
+  VdVolume vol{};
+  cpu::McMesh mesh;
+  cpu::ActiveSet fine;
+};
+
+Fixture MakeSphere() {
+  Fixture f;
+  VdVolume& vol = f.vol;
+  vol.dim_x = 41;
+  vol.dim_y = 36;
+  vol.dim_z = 30;
+  vol.voxel_size = 0.01f;
+  vol.origin = VD_F4(-0.2f, -0.18f, 0.8f, 1.f);
+  vol.truncation = 0.04f;
+  vol.max_weight = 64;
+  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  std::vector<float> tsdf(n), weight(n, 1.f);
+  std::vector<uint32_t> color(n, 0u);
+  for (int z = 0; z < vol.dim_z; ++z)
+    for (int y = 0; y < vol.dim_y; ++y)
+      for (int x = 0; x < vol.dim_x; ++x) {
+        const float d = std::sqrt(float((x - 20.3f) * (x - 20.3f) + (y - 17.6f) * (y - 17.6f) + (z - 15.2f) * (z - 15.2f))) - 11.4f;
+        tsdf[x + size_t(vol.dim_x) * (y + size_t(vol.dim_y) * z)] = std::clamp(d / 4.f, -1.f, 1.f);
+      }
+  f.mesh = cpu::MarchingCubes(tsdf.data(), weight.data(), color.data(), vol);
+  f.fine = cpu::BuildActiveSet(f.mesh.codes.data(), vol);
+  return f;
+}
+
+vd_float4 Rest(VdVolume vol, int i) {
+  int x, y, z;
+  vd_grid_coords(i, vol, &x, &y, &z);
+  return vd_rest_position(vol, x, y, z);
+}
+
+TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const Fixture f = MakeSphere();
+  ASSERT_GT(f.fine.list.size(), 3000u);
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(f.vol, true, &dv).ok());
+  DeviceActiveSet fine;
+  fine.count = f.fine.list.size();
+  fine.list = ToDevice(ctx, f.fine.list);
+  fine.compact = ToDevice(ctx, f.fine.compact);
+  fine.neighbours = ToDevice(ctx, f.fine.neighbours);
+  HierarchicalSolver h(&ops);
+  ASSERT_TRUE(h.Prepare(dv, fine, 3).ok());
+  ASSERT_EQ(h.num_levels(), 3);
+
+  // Fine state: rest plus a smooth non-rigid displacement.
+  std::vector<vd_float4> x_f(fine.count);
+  for (size_t k = 0; k < fine.count; ++k) {
+    const vd_float4 r = Rest(f.vol, f.fine.list[k]);
+    x_f[k] = r + VD_F4(0.01f * std::sin(9.f * r.y), 0.006f * std::cos(7.f * r.x), 0.004f * std::sin(5.f * r.z), 0.f);
+  }
+  auto d_x_f = ToDevice(ctx, x_f);
+  // Constraints at the marching-cubes vertices, targets along the normals.
+  std::vector<VdCorrespondence> cons;
+  for (size_t i = 0; i < f.mesh.positions_grid.size(); ++i) {
+    VdCorrespondence c;
+    c.canonical = f.mesh.positions_grid[i];
+    c.canonical.w = (i % 7 == 0) ? 0.f : 0.3f + 0.1f * float(i % 5);
+    c.normal = f.mesh.normals[i];
+    c.normal.w = 0.f;
+    const vd_float4 g = c.canonical;
+    c.target = VD_F4(f.vol.origin.x + 0.01f * g.x, f.vol.origin.y + 0.01f * g.y, f.vol.origin.z + 0.01f * g.z, 0.f) +
+               c.normal * 0.005f;
+    cons.push_back(c);
+  }
+  auto d_cons = ToDevice(ctx, cons);
+  const int nc = int(cons.size());
+
+  for (int l = 1; l <= 2; ++l) {
+    const int s = 1 << l;
+    const VdVolume cv = h.level_volume(l);
+    EXPECT_EQ(cv.voxel_size, f.vol.voxel_size * s);
+    const cpu::ActiveSet ref = cpu::BuildLevel(f.fine.list, f.vol, s, cv);
+    const DeviceActiveSet& got = h.level_active(l);
+    ASSERT_EQ(got.count, ref.list.size()) << "level " << l;
+    EXPECT_EQ(FromDevice(ctx, got.list, got.count), ref.list);
+    EXPECT_EQ(FromDevice(ctx, got.compact, ref.compact.size()), ref.compact);
+    EXPECT_EQ(FromDevice(ctx, got.neighbours, 6 * got.count), ref.neighbours);
+    // A coarse level is much smaller than the fine one but covers every fine point's cell.
+    EXPECT_LT(got.count, f.fine.list.size() / 2);
+
+    auto d_x0 = ctx->Alloc<vd_float4>(got.count);
+    ASSERT_TRUE(d_x0.ok());
+    ASSERT_TRUE(ctx->Run("vd_level_restrict_kernel", got.count, got.list, cv, s, fine.compact, f.vol, d_x_f, *d_x0).ok());
+    std::vector<vd_float4> x0_ref(got.count);
+    cpu::LevelRestrict(ref, cv, s, f.fine.compact.data(), f.vol, x_f.data(), x0_ref.data());
+    const auto x0 = FromDevice(ctx, *d_x0, got.count);
+    EXPECT_TRUE(AllClose(Flatten(x0), Flatten(x0_ref), 1e-6f, 1e-6f));
+
+    auto d_cc = ctx->Alloc<VdCorrespondence>(nc);
+    ASSERT_TRUE(d_cc.ok());
+    ASSERT_TRUE(ctx->Run("vd_level_constraints", nc, d_cons, fine.compact, f.vol, d_x_f, s, got.compact, cv, *d_x0,
+                         *d_cc).ok());
+    std::vector<VdCorrespondence> cc_ref(nc);
+    cpu::LevelConstraints(cons.data(), nc, f.fine.compact.data(), f.vol, x_f.data(), s, ref.compact.data(), cv,
+                          x0_ref.data(), cc_ref.data());
+    const auto cc = FromDevice(ctx, *d_cc, nc);
+    int kept = 0;
+    for (int c = 0; c < nc; ++c) {
+      ASSERT_EQ(cc[c].canonical.w, cc_ref[c].canonical.w) << c;
+      kept += cc[c].canonical.w > 0.f;
+      EXPECT_NEAR(cc[c].canonical.x, cc_ref[c].canonical.x, 1e-6f);
+      EXPECT_NEAR(cc[c].target.x, cc_ref[c].target.x, 1e-6f);
+      EXPECT_NEAR(cc[c].target.y, cc_ref[c].target.y, 1e-6f);
+      EXPECT_NEAR(cc[c].target.z, cc_ref[c].target.z, 1e-6f);
+    }
+    // Every constraint the fine level accepts has all its coarse corners: only the pruned ones drop.
+    EXPECT_EQ(kept, nc - (nc + 6) / 7);
+
+    // Prolongation of arbitrary coarse increments.
+    std::vector<vd_float4> x_c(got.count);
+    for (size_t k = 0; k < got.count; ++k) x_c[k] = x0_ref[k] + VD_F4(0.001f * float(k % 11), -0.0005f * float(k % 5), 0.002f, 0.f);
+    auto d_x_c = ToDevice(ctx, x_c);
+    auto d_out = ToDevice(ctx, x_f);
+    ASSERT_TRUE(ctx->Run("vd_level_prolongate_kernel", fine.count, fine.list, f.vol, s, got.compact, cv, d_x_c, *d_x0,
+                         d_out).ok());
+    std::vector<vd_float4> out_ref = x_f;
+    cpu::LevelProlongate(f.fine.list, f.vol, s, ref.compact.data(), cv, x_c.data(), x0_ref.data(), out_ref.data());
+    EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_out, fine.count)), Flatten(out_ref), 1e-6f, 1e-6f));
+  }
+}
+
+// A field translated by d everywhere: the coarse starts are rest + d, the constraints' targets do
+// not move (trilinear interpolation reproduces positions exactly), a constant coarse increment
+// reaches every fine point unchanged.
+TEST(HierarchyParityTest, TranslatedFieldIsExact) {
+  const Fixture f = MakeSphere();
+  const vd_float4 d = VD_F4(0.013f, -0.007f, 0.021f, 0.f);
+  std::vector<vd_float4> x_f(f.fine.list.size());
+  for (size_t k = 0; k < x_f.size(); ++k) x_f[k] = Rest(f.vol, f.fine.list[k]) + d;
+  const int s = 4;
+  const VdVolume cv = LevelVolume(f.vol, s);
+  const cpu::ActiveSet lvl = cpu::BuildLevel(f.fine.list, f.vol, s, cv);
+  std::vector<vd_float4> x0(lvl.list.size());
+  cpu::LevelRestrict(lvl, cv, s, f.fine.compact.data(), f.vol, x_f.data(), x0.data());
+  for (size_t k = 0; k < x0.size(); ++k) {
+    const vd_float4 want = Rest(cv, lvl.list[k]) + d;
+    ASSERT_NEAR(x0[k].x, want.x, 1e-6f);
+    ASSERT_NEAR(x0[k].y, want.y, 1e-6f);
+    ASSERT_NEAR(x0[k].z, want.z, 1e-6f);
+  }
+  std::vector<VdCorrespondence> cons;
+  for (size_t i = 0; i < f.mesh.positions_grid.size(); ++i) {
+    VdCorrespondence c;
+    c.canonical = f.mesh.positions_grid[i];
+    c.canonical.w = 1.f;
+    c.normal = f.mesh.normals[i];
+    c.target = VD_F4(0.1f, 0.2f, 0.9f, 0.f);
+    cons.push_back(c);
+  }
+  std::vector<VdCorrespondence> cc(cons.size());
+  cpu::LevelConstraints(cons.data(), int(cons.size()), f.fine.compact.data(), f.vol, x_f.data(), s,
+                        lvl.compact.data(), cv, x0.data(), cc.data());
+  for (size_t c = 0; c < cc.size(); ++c) {
+    ASSERT_GT(cc[c].canonical.w, 0.f);
+    ASSERT_NEAR(cc[c].target.x, 0.1f, 2e-6f);
+    ASSERT_NEAR(cc[c].target.y, 0.2f, 2e-6f);
+    ASSERT_NEAR(cc[c].target.z, 0.9f, 2e-6f);
+    ASSERT_NEAR(cc[c].canonical.x * s, cons[c].canonical.x, 1e-4f);
+  }
+  std::vector<vd_float4> x_c = x0;
+  for (auto& p : x_c) p = p + VD_F4(0.002f, 0.003f, -0.001f, 0.f);
+  std::vector<vd_float4> out = x_f;
+  cpu::LevelProlongate(f.fine.list, f.vol, s, lvl.compact.data(), cv, x_c.data(), x0.data(), out.data());
+  for (size_t k = 0; k < out.size(); ++k) {
+    ASSERT_NEAR(out[k].x - x_f[k].x, 0.002f, 1e-6f);
+    ASSERT_NEAR(out[k].y - x_f[k].y, 0.003f, 1e-6f);
+    ASSERT_NEAR(out[k].z - x_f[k].z, -0.001f, 1e-6f);
+  }
+}
+
+}  // namespace
+}  // namespace vd
