@@ -1,20 +1,38 @@
 #include "shared/active_set.h"
 
-/* One work item per grid row (fixed y, z). */
-__kernel void vd_active_surface(__global const ushort* codes, __global const uchar* tri_counts, VdVolume vol,
-                                __global uchar* surface, int vd_items) {
+/* One work item per grid row (fixed y, z). Rows whose incident cell rows hold no triangles
+ * (row_tris from marching cubes) are written as zeros without looking at the cells: most of the
+ * grid is empty space. row_surface receives each row's surface point count. */
+__kernel void vd_active_surface(__global const ushort* codes, __global const uchar* tri_counts,
+                                __global const uint* row_tris, VdVolume vol, __global uchar* surface,
+                                __global uint* row_surface, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
-  for (int x = 0; x < vol.dim_x; ++x)
-    surface[yz * vol.dim_x + x] = vd_active_surface_point(codes, tri_counts, vol, x, y, z);
+  if (!vd_mc_row_has_cells(row_tris, vol, y, z)) {
+    for (int x = 0; x < vol.dim_x; ++x) surface[yz * vol.dim_x + x] = 0;
+    row_surface[yz] = 0u;
+    return;
+  }
+  uint n = 0u;
+  for (int x = 0; x < vol.dim_x; ++x) {
+    vd_uchar s = vd_active_surface_point(codes, tri_counts, vol, x, y, z);
+    surface[yz * vol.dim_x + x] = s;
+    n += s;
+  }
+  row_surface[yz] = n;
 }
 
-__kernel void vd_active_dilate(__global const uchar* surface, VdVolume vol, __global uchar* member,
-                               __global uint* row_count, int vd_items) {
+__kernel void vd_active_dilate(__global const uchar* surface, __global const uint* row_surface, VdVolume vol,
+                               __global uchar* member, __global uint* row_count, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  if (!vd_active_row_near_surface(row_surface, vol, y, z)) {
+    for (int x = 0; x < vol.dim_x; ++x) member[yz * vol.dim_x + x] = 0;
+    row_count[yz] = 0u;
+    return;
+  }
   uint n = 0u;
   for (int x = 0; x < vol.dim_x; ++x) {
     uchar m = vd_active_dilate_point(surface, vol, x, y, z);

@@ -18,11 +18,17 @@ __kernel void vd_mc_classify(__global const float* tsdf, __global const float* w
   row_tris[yz] = total;
 }
 
-__kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* codes, VdVolume vol,
-                          __global uchar* masks, __global uint* row_verts, int vd_items) {
+__kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* codes,
+                          __global const uint* row_tris, VdVolume vol, __global uchar* masks,
+                          __global uint* row_verts, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  if (!vd_mc_row_has_cells(row_tris, vol, y, z)) {
+    for (int x = 0; x < vol.dim_x; ++x) masks[yz * vol.dim_x + x] = 0;
+    row_verts[yz] = 0u;
+    return;
+  }
   uint total = 0u;
   for (int x = 0; x < vol.dim_x; ++x) {
     uint m = vd_mc_vertex_mask(tsdf, codes, vol, x, y, z);

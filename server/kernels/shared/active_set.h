@@ -20,6 +20,17 @@ VD_INLINE vd_uchar vd_active_surface_point(VD_GLOBAL const vd_ushort* codes, VD_
   return 0;
 }
 
+/* Whether grid row (y, z) or one of its 4 neighbouring rows holds a surface point. */
+VD_INLINE int vd_active_row_near_surface(VD_GLOBAL const vd_uint* row_surface, VdVolume vol, int y, int z) {
+  int yz = y + vol.dim_y * z;
+  if (row_surface[yz] > 0u) return 1;
+  if (y > 0 && row_surface[yz - 1] > 0u) return 1;
+  if (y < vol.dim_y - 1 && row_surface[yz + 1] > 0u) return 1;
+  if (z > 0 && row_surface[yz - vol.dim_y] > 0u) return 1;
+  if (z < vol.dim_z - 1 && row_surface[yz + vol.dim_y] > 0u) return 1;
+  return 0;
+}
+
 /* 1 when grid point (x, y, z) is a surface point or a 6-neighbour of one. */
 VD_INLINE vd_uchar vd_active_dilate_point(VD_GLOBAL const vd_uchar* surface, VdVolume vol, int x, int y, int z) {
   int i = vd_grid_index(vol, x, y, z);

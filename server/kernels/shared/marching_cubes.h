@@ -33,6 +33,20 @@ VD_INLINE vd_uint vd_mc_code_at(VD_GLOBAL const vd_ushort* codes, VdVolume vol, 
   return codes[vd_grid_index(vol, x, y, z)];
 }
 
+/* Whether any cell row incident to grid row (y, z) (cell rows y-1..y, z-1..z) has triangles
+ * (row_tris from vd_mc_classify). When none has, no edge of the row's points carries a vertex (a
+ * valid cell with a sign change on an edge always emits triangles) and no point of the row is a
+ * corner of a surface cell: the later passes write zeros without reading the grid. */
+VD_INLINE int vd_mc_row_has_cells(VD_GLOBAL const vd_uint* row_tris, VdVolume vol, int y, int z) {
+  for (int dz = -1; dz <= 0; ++dz)
+    for (int dy = -1; dy <= 0; ++dy) {
+      int cy = y + dy, cz = z + dz;
+      if (cy < 0 || cz < 0 || cy >= vol.dim_y || cz >= vol.dim_z) continue;
+      if (row_tris[cy + vol.dim_y * cz] > 0u) return 1;
+    }
+  return 0;
+}
+
 /* Bit a set when grid point (x, y, z) owns a vertex on its edge along axis a. */
 VD_INLINE vd_uint vd_mc_vertex_mask(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_ushort* codes, VdVolume vol,
                                     int x, int y, int z) {

@@ -124,7 +124,7 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_tri_offset_, rows + 1));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_vert_offset_, rows + 1));
   VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_classify", rows, v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_row_tris_));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_masks", rows, v.tsdf, mc_codes_, v.vol, mc_masks_, mc_row_verts_));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_masks", rows, v.tsdf, mc_codes_, mc_row_tris_, v.vol, mc_masks_, mc_row_verts_));
   uint32_t nt = 0, nv = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(mc_row_tris_, rows, mc_row_tri_offset_, &nt));
   VD_RETURN_IF_ERROR(ScanExclusive(mc_row_verts_, rows, mc_row_vert_offset_, &nv));
@@ -181,8 +181,11 @@ Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_count_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_offset_, rows + 1));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_surface", rows, mc_codes_, mc_tri_counts_, v.vol, active_surface_));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_dilate", rows, active_surface_, v.vol, active_member_, active_row_count_));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_surface_, rows));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_surface", rows, mc_codes_, mc_tri_counts_, mc_row_tris_, v.vol,
+                               active_surface_, active_row_surface_));
+  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_dilate", rows, active_surface_, active_row_surface_, v.vol, active_member_,
+                               active_row_count_));
   uint32_t total = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
   out->count = total;

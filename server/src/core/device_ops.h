@@ -127,6 +127,8 @@ class DeviceOps {
   ocl::Buffer<uint8_t> active_surface_;
   ocl::Buffer<uint8_t> active_member_;
   ocl::Buffer<uint32_t> active_row_count_;
+  // Surface points per grid row, so the dilation skips rows far from any.
+  ocl::Buffer<uint32_t> active_row_surface_;
   ocl::Buffer<uint32_t> active_row_offset_;
   std::vector<float> icp_host_;
 };
