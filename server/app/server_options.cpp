@@ -27,6 +27,9 @@ void ServerOptions::Register(FlagParser* f) {
   f->AddInt("flip-flop-iterations", &flip_flop_iterations, "Flip-flop iterations on the fine level per outer iteration");
   f->AddInt("coarse-iterations", &coarse_iterations, "Flip-flop iterations on each coarse level per outer iteration");
   f->AddInt("pcg-iterations", &pcg_iterations, "PCG iterations per position step (at most)");
+  f->AddBool("no-sift", &no_sift,
+             "Turn the sparse colour term off: no SIFT features, depth-only non-rigid tracking (for comparisons)");
+  f->AddFloat("w-sparse", &w_sparse, "Weight of the sparse SIFT term E_sparse per match, relative to the dense term");
   f->AddInt("count", &count, "Offline mode: process at most N frames (-1 = all)");
   f->AddInt("start", &start, "Offline mode: first frame index");
   f->AddInt("stride", &stride, "Offline mode: use every n-th frame");
@@ -59,6 +62,8 @@ StatusOr<EngineParams> ServerOptions::ToEngineParams() const {
   p.solver.flip_flop_iterations = int(flip_flop_iterations);
   p.solver.coarse_flip_flop_iterations = int(coarse_iterations);
   p.solver.pcg_iterations = int(pcg_iterations);
+  p.features.enabled = !no_sift;
+  p.features.w_sparse = float(w_sparse);
   p.min_depth = float(min_depth);
   p.max_depth = float(max_depth);
   p.max_grid_mb = max_grid_mb;

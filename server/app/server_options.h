@@ -27,6 +27,9 @@ struct ServerOptions {
   int64_t flip_flop_iterations = SolverParams().flip_flop_iterations;
   int64_t coarse_iterations = SolverParams().coarse_flip_flop_iterations;
   int64_t pcg_iterations = SolverParams().pcg_iterations;
+  // Sparse colour features (E_sparse).
+  bool no_sift = false;
+  double w_sparse = FeatureParams().w_sparse;
   int64_t count = -1;
   int64_t start = 0;
   int64_t stride = 1;

@@ -56,6 +56,9 @@ int main(int argc, char** argv) {
   std::printf("stages (mean ms):");
   for (int i = 0; i < vd::StageTimes::kCount; ++i) std::printf(" %s %.1f |", vd::StageTimes::kNames[i], e->stage_ms[i]);
   std::printf(" total %.1f ms = %.2f fps\n", e->total_ms, 1000.0 / std::max(1e-9, e->total_ms));
+  std::printf("features per frame (mean): %.0f detected, %.0f lifted, %.0f matches; detection + description %.1f ms "
+              "(beside the frame's thread)\n",
+              e->mean_features, e->mean_lifted, e->mean_matches, e->mean_extract_ms);
   std::printf("active grid points (mean) %.0f, OpenCL buffers peak %.1f MB, resident peak %.1f MB\n",
               e->mean_active_voxels, e->device_peak_bytes / 1e6, vd::PeakResidentBytes() / 1e6);
   return 0;

@@ -26,6 +26,8 @@ struct SceneErrors {
   int frames = 0;
   double mean_active_voxels = 0;
   size_t device_peak_bytes = 0;
+  // Sparse features per frame (means): detected, lifted, matches used; detection + description ms.
+  double mean_features = 0, mean_lifted = 0, mean_matches = 0, mean_extract_ms = 0;
 };
 
 struct SceneRun {
@@ -53,9 +55,21 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   const MeshDistance gt0(scene->GroundTruthMesh(0));
   double sum_surface = 0, sum_active = 0;
   int last = 0;
-  for (int k = 0; k < run.num_frames; k += std::max(1, run.stride)) last = k;
-  for (int k = 0; k < run.num_frames; k += std::max(1, run.stride)) {
-    VD_ASSIGN_OR_RETURN(FrameResult r, engine->Process(scene->Render(k)));
+  const int step = std::max(1, run.stride);
+  for (int k = 0; k < run.num_frames; k += step) last = k;
+  RgbdFrame next = scene->Render(0);
+  for (int k = 0; k < run.num_frames; k += step) {
+    const RgbdFrame frame = next;
+    // The next frame's features are detected while this one is solved, as the server does.
+    if (k + step < run.num_frames) {
+      next = scene->Render(k + step);
+      engine->Prefetch(next);
+    }
+    VD_ASSIGN_OR_RETURN(FrameResult r, engine->Process(frame));
+    out.mean_features += r.features_detected;
+    out.mean_lifted += r.features_lifted;
+    out.mean_matches += r.sparse_matches;
+    out.mean_extract_ms += r.feature_extract_ms;
     const TriangleMesh gt = scene->GroundTruthMesh(k);
     const MeshDistance dist(gt);
     double s = 0;
@@ -70,9 +84,14 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
     }
     sum_active += double(r.active_voxels);
     if (run.verbose) {
-      std::printf("frame %3d: surface %.2f mm, %zu vertices, %lld active, E %.4g -> %.4g, %d constraints\n", k,
-                  surface_mm, r.live_mesh.num_vertices(), static_cast<long long>(r.active_voxels), r.energy_initial,
-                  r.energy_final, r.dense_correspondences);
+      std::printf("frame %3d: surface %.2f mm, %zu vertices, %lld active, E %.4g -> %.4g, %d constraints, features "
+                  "%d/%d lifted, %d matches\n",
+                  k, surface_mm, r.live_mesh.num_vertices(), static_cast<long long>(r.active_voxels), r.energy_initial,
+                  r.energy_final, r.dense_correspondences, r.features_lifted, r.features_detected, r.sparse_matches);
+      std::printf("frame %3d: pose t (%.1f, %.1f, %.1f) mm vs true (%.1f, %.1f, %.1f) mm, ICP %d inliers\n", k,
+                  1000 * r.pose(0, 3), 1000 * r.pose(1, 3), 1000 * r.pose(2, 3), 1000 * scene->CameraPose(k)(0, 3),
+                  1000 * scene->CameraPose(k)(1, 3), 1000 * scene->CameraPose(k)(2, 3), r.icp_inliers);
+      if (!r.tracking_ok) std::printf("frame %3d: tracking failed: %s\n", k, r.tracking_message.c_str());
     }
     if (k == last || (run.verbose && k % 10 == 0)) {
       // Drift: canonical vertex -> material point on frame 0's true surface -> its true position now.
@@ -96,6 +115,10 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   const int n = std::max(1, out.frames);
   out.mean_surface_mm = sum_surface / n;
   out.mean_active_voxels = sum_active / n;
+  out.mean_features /= n;
+  out.mean_lifted /= n;
+  out.mean_matches /= n;
+  out.mean_extract_ms /= n;
   for (double& v : out.stage_ms) v /= n;
   out.total_ms /= n;
   out.device_peak_bytes = engine->device_peak_bytes();

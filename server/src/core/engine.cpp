@@ -91,6 +91,7 @@ Status EngineParams::Validate() const {
     return Bad("corr_eps_*", corr_eps_d, "eps_d > 0, 0 < eps_n, eps_v <= 2");
   if (!(k_min >= 0.f && k_min <= 100.f)) return Bad("k_min", k_min, "0 <= k_min <= 100");
   VD_RETURN_IF_ERROR(solver.Validate());
+  VD_RETURN_IF_ERROR(features.Validate());
   return Status::Ok();
 }
 
@@ -103,11 +104,35 @@ StatusOr<std::unique_ptr<Engine>> Engine::Create(const EngineParams& params, con
 }
 
 Engine::Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx)
-    : params_(params), ctx_(std::move(ctx)), ops_(ctx_.get()), solver_(std::make_unique<HierarchicalSolver>(&ops_)) {}
+    : params_(params),
+      ctx_(std::move(ctx)),
+      ops_(ctx_.get()),
+      solver_(std::make_unique<HierarchicalSolver>(&ops_)),
+      matcher_(ctx_.get()) {
+  extractor_.Configure(params_.features, params_.min_depth, params_.max_depth);
+}
+
+bool Engine::SparseEnabled() const {
+  return params_.features.enabled && !params_.rigid_only && params_.nonrigid_outer_iterations > 0;
+}
+
+void Engine::Prefetch(const RgbdFrame& next) {
+  if (SparseEnabled() && next.Validate().ok()) extractor_.Prefetch(next);
+}
+
+Status Engine::DownloadDeformation(std::vector<vd_float4>* def_pos) {
+  if (!volume_.has_deformation()) return FailedPrecondition("the grid has no deformation field");
+  def_pos->resize(volume_.num_voxels());
+  return ctx_->Download(volume_.def_pos, def_pos->data(), def_pos->size());
+}
 
 void Engine::Reset() {
   initialised_ = false;
   frames_fused_ = 0;
+  frames_seen_ = 0;
+  history_.Clear();
+  extractor_.Clear();
+  matches_.clear();
   pose_ = model_pose_ = Eigen::Matrix4d::Identity();
   mesh_.num_vertices = mesh_.num_triangles = 0;
 }
@@ -256,6 +281,28 @@ Status Engine::Track(FrameResult* result) {
       for (int r = 0; r < 6; ++r)
         for (int c = r; c < 6; ++c) A(r, c) = A(c, r) = acc[q++];
       for (int r = 0; r < 6; ++r) b(r) = acc[21 + r];
+      // E_sparse's part in the pose (paper eq. 1 with the field fixed): each match as three
+      // point-to-point rows e . (T p - q), Huber-weighted, scaled like the pixel count of the level.
+      if (!matches_.empty()) {
+        const float w_level = params_.features.w_sparse / std::max(1e-6f, params_.solver.w_dense) / float(1 << (2 * l));
+        const double huber = params_.features.pose_huber;
+        for (const SparseMatch& m : matches_) {
+          const Eigen::Vector3d p(m.camera_point.x, m.camera_point.y, m.camera_point.z);
+          const Eigen::Vector3d pw = T.topLeftCorner<3, 3>() * p + T.topRightCorner<3, 1>();
+          const Eigen::Vector3d res = pw - Eigen::Vector3d(m.predicted.x, m.predicted.y, m.predicted.z);
+          const double norm = res.norm();
+          const double w = w_level * (norm <= huber ? 1.0 : huber / norm);
+          for (int axis = 0; axis < 3; ++axis) {
+            Eigen::Vector3d e = Eigen::Vector3d::Zero();
+            e(axis) = 1.0;
+            Eigen::Matrix<double, 6, 1> J;
+            J.head<3>() = pw.cross(e);
+            J.tail<3>() = e;
+            A.noalias() += w * J * J.transpose();
+            b.noalias() += w * J * res(axis);
+          }
+        }
+      }
       // Prior towards the frame's starting pose in the directions the depth barely observes (the
       // spin of a surface of revolution about its axis, a plane sliding in itself), where a bare
       // Gauss-Newton step turns noise and small model errors into drift. Direction i of A, with
@@ -375,7 +422,13 @@ Status Engine::NonRigid(FrameResult* result) {
   VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
   VD_RETURN_IF_ERROR(solver_->Prepare(volume_, active_, params_.solver.levels));
   const size_t pixels = static_cast<size_t>(cam_.width) * cam_.height;
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, pixels));
+  // E_sparse: each match as three axis rows after the per-pixel constraints (weight w_s / w_d).
+  sparse_host_.clear();
+  if (!matches_.empty() && params_.solver.w_dense > 0.f)
+    AppendSparseConstraints(matches_, params_.features.w_sparse / params_.solver.w_dense, &sparse_host_);
+  const size_t total = pixels + sparse_host_.size();
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, total));
+  VD_RETURN_IF_ERROR(ctx_->Upload(corr_, sparse_host_.data(), sparse_host_.size(), pixels));
   VdCorrParams cp{};
   cp.eps_d = params_.corr_eps_d;
   cp.eps_n = params_.corr_eps_n;
@@ -387,7 +440,7 @@ Status Engine::NonRigid(FrameResult* result) {
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
     VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
     VD_RETURN_IF_ERROR(ops_.Correspondences(live_, vmap_[0], nmap_[0], mesh_, cp, corr_));
-    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, pixels, params_.solver));
+    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, total, params_.solver));
     VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
     if (outer == 0) result->energy_initial = summary.energy_initial;
     result->energy_final = summary.energy_final;
@@ -404,10 +457,32 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
                            std::to_string(frame.intrinsics.height) + "; reset the model first");
   FrameResult result;
   result.seq = frame.seq;
+  // Detection runs beside preprocessing and tracking when the caller did not prefetch it.
+  const bool sparse = SparseEnabled();
+  if (sparse) extractor_.Prefetch(frame);
   auto t0 = Clock::now();
   VD_RETURN_IF_ERROR(Preprocess(frame));
   result.times.ms[0] = MsSince(t0);
 
+  // The field exists, has been fused into and has a surface: the non-rigid path runs.
+  const bool nonrigid = initialised_ && volume_.has_deformation() && frames_fused_ > 0 && mesh_.num_triangles > 0;
+  FrameFeatures features;
+  matches_.clear();
+  if (sparse) {
+    // Matched before tracking (pruned with the last pose, section 5.2: the motion between two
+    // frames is taken as rigid), so E_sparse takes part in the global pose as well.
+    VD_ASSIGN_OR_RETURN(features, extractor_.Take(frame));
+    features.frame_index = frames_seen_;
+    result.features_detected = int(features.size_keypoints());
+    result.feature_extract_ms = features.extract_ms;
+    if (nonrigid && history_.num_frames() > 0) {
+      t0 = Clock::now();
+      MatchStats stats;
+      VD_RETURN_IF_ERROR(matcher_.Match(features, history_, history_.Candidates(params_.features), volume_,
+                                        ToVdPose(pose_), cam_, params_.features, &matches_, &stats));
+      result.times.ms[7] += MsSince(t0);
+    }
+  }
   if (!initialised_) {
     VD_ASSIGN_OR_RETURN(VdVolume vol, PlaceVolume(frame, params_));
     if (volume_.num_voxels() != size_t(vol.dim_x) * vol.dim_y * vol.dim_z ||
@@ -432,11 +507,27 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     result.times.ms[2] = MsSince(t0);
   }
   result.pose = pose_;
-  const bool nonrigid = volume_.has_deformation() && frames_fused_ > 0 && mesh_.num_triangles > 0;
+  if (result.tracking_ok) {
+    RetargetMatches(ToVdPose(pose_), params_.features.prune, &matches_);
+  } else {
+    matches_.clear();
+  }
+  result.sparse_matches = int(matches_.size());
+  ++frames_seen_;
   if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0) {
     t0 = Clock::now();
     VD_RETURN_IF_ERROR(NonRigid(&result));
     result.times.ms[3] = MsSince(t0);
+  }
+  if (result.tracking_ok && sparse) {
+    // Into the canonical pose through this frame's field (after its solve), before fusion
+    // changes the surface the raster showed.
+    t0 = Clock::now();
+    VD_RETURN_IF_ERROR(matcher_.Lift(&features, live_, mesh_, volume_, ToVdPose(pose_), ToVdPose(pose_.inverse()),
+                                     !nonrigid, params_.features));
+    for (const vd_float4& g : features.canonical) result.features_lifted += g.w > 0.f;
+    history_.Add(std::move(features), params_.features.keyframe_interval);
+    result.times.ms[7] += MsSince(t0);
   }
   if (result.tracking_ok) {
     t0 = Clock::now();

@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "core/device_ops.h"
+#include "core/features.h"
 #include "core/hierarchy.h"
 #include "core/solver.h"
 #include "vd/common/frame.h"
@@ -70,14 +71,18 @@ struct EngineParams {
   // Grid points are fused only after taking part in this many optimisations (section 8).
   float k_min = 3.f;
   SolverParams solver;
+  // Sparse colour features and E_sparse (section 5.2); used by the non-rigid solve only.
+  FeatureParams features;
   Status Validate() const;
 };
 
 // Wall-clock milliseconds of each stage of the last frame.
 struct StageTimes {
-  static constexpr int kCount = 7;
-  static constexpr const char* kNames[kCount] = {"preprocess", "raster", "icp",     "nonrigid",
-                                                 "integrate",  "marching_cubes", "download"};
+  static constexpr int kCount = 8;
+  // "features": matching and lifting on the frame's thread (detection runs beside it, see
+  // FrameResult::feature_extract_ms).
+  static constexpr const char* kNames[kCount] = {"preprocess", "raster",   "icp",      "nonrigid",
+                                                 "integrate",  "marching_cubes", "download", "features"};
   std::array<double, kCount> ms{};
 };
 
@@ -95,10 +100,17 @@ struct FrameResult {
   int icp_inliers = 0;
   float icp_rmse = 0.f;
   int64_t active_voxels = 0;
-  // Non-rigid solve of this frame: constraints, E_total before and after (0 when rigid).
+  // Non-rigid solve of this frame: constraint rows (dense pixels + 3 per sparse match), E_total before and after (0 when rigid).
   int dense_correspondences = 0;
   double energy_initial = 0.0;
   double energy_final = 0.0;
+  // Sparse features of this frame: keypoints detected, lifted into the canonical pose, matches
+  // used as E_sparse constraints, and the detection + description time (off the frame's thread
+  // when prefetched).
+  int features_detected = 0;
+  int features_lifted = 0;
+  int sparse_matches = 0;
+  double feature_extract_ms = 0.0;
 };
 
 class Engine {
@@ -109,6 +121,9 @@ class Engine {
   // Processes one frame. Errors are returned for bad input or device failure; a tracking failure
   // is a successful call with tracking_ok == false.
   StatusOr<FrameResult> Process(const RgbdFrame& frame);
+  // Starts feature detection for a frame that will be processed next, so it runs while the
+  // current frame is solved (optional: Process extracts what was not prefetched).
+  void Prefetch(const RgbdFrame& next);
   // Drops the model; the next frame starts a new one.
   void Reset();
 
@@ -116,6 +131,11 @@ class Engine {
   std::string DeviceDescription() const { return ctx_->Describe(); }
   bool has_model() const { return initialised_; }
   const VdVolume& volume() const { return volume_.vol; }
+  const FeatureHistory& feature_history() const { return history_; }
+  // Matches of the last frame (tests).
+  const std::vector<SparseMatch>& last_matches() const { return matches_; }
+  // Download of the deformation field positions (tests).
+  Status DownloadDeformation(std::vector<vd_float4>* def_pos);
   size_t device_peak_bytes() const { return ctx_->peak_bytes(); }
   // Downloads the grid (for snapshots and tests).
   Status DownloadVolume(std::vector<float>* tsdf, std::vector<float>* weight, std::vector<uint32_t>* color);
@@ -129,6 +149,7 @@ class Engine {
   Status Track(FrameResult* result);
   Status ExtractMesh(FrameResult* result);
   Status NonRigid(FrameResult* result);
+  bool SparseEnabled() const;
 
   EngineParams params_;
   std::unique_ptr<ocl::Context> ctx_;
@@ -144,6 +165,14 @@ class Engine {
   DeviceRaster live_;
   ocl::Buffer<VdCorrespondence> corr_;
   std::unique_ptr<HierarchicalSolver> solver_;
+  // Sparse features: detection off the frame's thread, every frame's lifted features, the device
+  // matcher, this frame's matches and their constraints.
+  AsyncFeatureExtractor extractor_;
+  FeatureHistory history_;
+  FeatureMatcher matcher_;
+  std::vector<SparseMatch> matches_;
+  std::vector<VdCorrespondence> sparse_host_;
+  int64_t frames_seen_ = 0;
   Eigen::Matrix4d pose_ = Eigen::Matrix4d::Identity();
   // Pose at which mesh_ was last rendered into model_.
   Eigen::Matrix4d model_pose_ = Eigen::Matrix4d::Identity();
