@@ -53,6 +53,8 @@ class Node {
     last_seq_[msg->source_id] = msg->seq;
     if (mailbox_) ++dropped_;
     mailbox_ = std::move(frame).value();
+    // Feature detection starts now, beside the frame the worker may be solving.
+    engine_->Prefetch(*mailbox_);
     cv_.notify_one();
   }
 

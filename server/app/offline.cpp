@@ -67,11 +67,14 @@ int RunOffline(const ServerOptions& options) {
   const bool tty = isatty(fileno(stderr));
   int64_t processed = 0, lost = 0;
   const auto t_start = std::chrono::steady_clock::now();
+  // One frame of look-ahead: its features are detected while the current frame is solved.
+  auto next = (*source)->Next();
   while (!g_stop) {
-    auto next = (*source)->Next();
     if (!next.ok()) return fail(next.status().WithContext("reading frame " + std::to_string(processed)));
     if (!next->has_value()) break;
-    const RgbdFrame& frame = **next;
+    const RgbdFrame frame = std::move(**next);
+    next = (*source)->Next();
+    if (next.ok() && next->has_value()) (*engine)->Prefetch(**next);
     const auto t0 = std::chrono::steady_clock::now();
     auto result = (*engine)->Process(frame);
     if (!result.ok()) return fail(result.status().WithContext("frame " + std::to_string(frame.seq)));

@@ -21,8 +21,10 @@ namespace vd {
 struct FeatureParams {
   // E_sparse on (the server's --no-sift turns it off for comparisons).
   bool enabled = true;
-  // Weight w_s of E_sparse relative to the dense term's w_d (paper eq. 1), per match and axis.
-  float w_sparse = 8.f;
+  // Weight w_s of E_sparse relative to the dense term's w_d (paper eq. 1), per match and axis
+  // (a match has ~1/300 of the pixels' count). Measured (docs/BENCHMARKS.md): cloth drift 6.4 /
+  // 4.2 / 3.2 / 2.8 mm and tube drift 1.5 / - / 2.2 / 2.9 mm at 8 / 16 / 32 / 64: 32 balances both.
+  float w_sparse = 32.f;
   // Detection (section 5.2): DoG scale space of `octaves` x `octave_layers`, at most
   // `max_keypoints` keypoints with valid depth per frame, up to `max_orientations` per location.
   int max_keypoints = 150;
