@@ -156,10 +156,12 @@ int main(int argc, char** argv) {
         fr.push_back(int32_t(cd.size() / VD_DESC_BYTES));
       }
       const int n_cand = int(cd.size() / VD_DESC_BYTES), n_cur = int(cur.size_keypoints());
+      std::vector<uint8_t> cd_t(cd.size());
+      vd_desc_transpose(cd.data(), n_cand, cd_t.data());
       std::vector<float> dist(size_t(n_cur) * n_cand);
       std::vector<VdMatchBest> rows(size_t(n_cur) * cand.size()), cols(n_cand);
       const double ref = MedianMs(reps, [&] {
-        cpu::MatchDistances(cur.desc.data(), n_cur, cd.data(), n_cand, dist.data());
+        cpu::MatchDistances(cur.desc.data(), n_cur, cd_t.data(), n_cand, dist.data());
         cpu::MatchRows(dist.data(), n_cur, n_cand, fr.data(), int(cand.size()), rows.data());
         cpu::MatchColumns(dist.data(), n_cur, n_cand, cols.data());
       });

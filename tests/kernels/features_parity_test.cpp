@@ -47,16 +47,19 @@ TEST(FeatureMatchParityTest, DistancesRowsAndColumnsMatchCpuAndFindPlantedMatche
     for (int j = 0; j < VD_DESC_BYTES; ++j)
       cur[size_t(a) * VD_DESC_BYTES + j] = uint8_t(std::clamp(int(cand[size_t(b) * VD_DESC_BYTES + j]) + noise(rng), 0, 255));
   }
-  // CPU reference.
+  // CPU reference (candidates transposed as the kernels take them).
+  std::vector<uint8_t> cand_t(cand.size());
+  vd_desc_transpose(cand.data(), n_cand, cand_t.data());
+  EXPECT_EQ(cand_t[size_t(5) * n_cand + 17], cand[size_t(17) * VD_DESC_BYTES + 5]);
   std::vector<float> dist(size_t(n_cur) * n_cand);
-  cpu::MatchDistances(cur.data(), n_cur, cand.data(), n_cand, dist.data());
+  cpu::MatchDistances(cur.data(), n_cur, cand_t.data(), n_cand, dist.data());
   const int nf = int(sizes.size());
   std::vector<VdMatchBest> rows(size_t(n_cur) * nf), cols(n_cand);
   cpu::MatchRows(dist.data(), n_cur, n_cand, frames.data(), nf, rows.data());
   cpu::MatchColumns(dist.data(), n_cur, n_cand, cols.data());
   // Device.
   auto d_cur = test::ToDevice(ctx, cur);
-  auto d_cand = test::ToDevice(ctx, cand);
+  auto d_cand = test::ToDevice(ctx, cand_t);
   auto d_frames = test::ToDevice(ctx, frames);
   auto d_dist = test::ToDevice(ctx, std::vector<float>(dist.size(), -1.f));
   auto d_rows = test::ToDevice(ctx, std::vector<VdMatchBest>(rows.size()));

@@ -2,7 +2,8 @@
  * the pruning rules, and the lifting of observed keypoints into the canonical pose (S^-1).
  *
  * Matching: the current frame's n_cur descriptors (128 bytes each, SIFT values 0..255) against
- * a set of earlier frames whose descriptors lie one after another in a candidate buffer. One
+ * a set of earlier frames whose descriptors lie one after another in a candidate buffer (stored
+ * transposed, see vd_match_distances_column). One
  * pass computes the squared L2 distance matrix D[a * n_cand + b]; the row pass finds, per current
  * feature a and candidate frame f, the nearest and second-nearest candidate of f; the column pass
  * finds, per candidate b, the nearest current feature. A pair (a, b) is a match in both directions
@@ -42,11 +43,30 @@ VD_INLINE float vd_desc_dist2(VD_GLOBAL const vd_uchar* a, VD_GLOBAL const vd_uc
   return s;
 }
 
-/* Candidate b against every current descriptor: column b of D. */
+/* Candidate b against every current descriptor: column b of D. The candidates are stored
+ * transposed (byte j of candidate b at cand_t[j * n_cand + b]) so neighbouring work items read
+ * neighbouring bytes; a device then loads whole vectors instead of gathering 128-byte strides. */
 VD_INLINE void vd_match_distances_column(int b, VD_GLOBAL const vd_uchar* cur, int n_cur,
-                                         VD_GLOBAL const vd_uchar* cand, int n_cand, VD_GLOBAL float* dist) {
-  VD_GLOBAL const vd_uchar* db = cand + (size_t)b * VD_DESC_BYTES;
-  for (int a = 0; a < n_cur; ++a) dist[(size_t)a * n_cand + b] = vd_desc_dist2(cur + (size_t)a * VD_DESC_BYTES, db);
+                                         VD_GLOBAL const vd_uchar* cand_t, int n_cand, VD_GLOBAL float* dist) {
+  /* The candidate stays in private memory while every current descriptor streams past. */
+  int mine[VD_DESC_BYTES];
+  for (int j = 0; j < VD_DESC_BYTES; ++j) mine[j] = (int)cand_t[(size_t)j * n_cand + b];
+  for (int a = 0; a < n_cur; ++a) {
+    VD_GLOBAL const vd_uchar* da = cur + (size_t)a * VD_DESC_BYTES;
+    /* Integer arithmetic: exact, and free to be reordered and vectorised. */
+    int s = 0;
+    for (int j = 0; j < VD_DESC_BYTES; ++j) {
+      int d = (int)da[j] - mine[j];
+      s += d * d;
+    }
+    dist[(size_t)a * n_cand + b] = (float)s;
+  }
+}
+
+/* Transposes n descriptors (row-major, 128 bytes each) into the layout above. */
+VD_INLINE void vd_desc_transpose(VD_GLOBAL const vd_uchar* rows, int n, VD_GLOBAL vd_uchar* cols) {
+  for (int b = 0; b < n; ++b)
+    for (int j = 0; j < VD_DESC_BYTES; ++j) cols[(size_t)j * n + b] = rows[(size_t)b * VD_DESC_BYTES + j];
 }
 
 /* Row scan of current feature a over the candidates [begin, end) of one frame. Ties keep the

@@ -87,12 +87,30 @@ StatusOr<FrameFeatures> ExtractFeatures(const RgbdFrame& frame, const FeaturePar
     return (d == 0 || m < min_depth || m > max_depth) ? 0.f : m;
   };
   cv::Mat mask(depth.size(), CV_8U);
+  int x0 = depth.cols, y0 = depth.rows, x1 = -1, y1 = -1;
   for (int y = 0; y < depth.rows; ++y)
-    for (int x = 0; x < depth.cols; ++x) mask.at<uint8_t>(y, x) = depth_at(x, y) > 0.f ? 255 : 0;
+    for (int x = 0; x < depth.cols; ++x) {
+      const bool valid = depth_at(x, y) > 0.f;
+      mask.at<uint8_t>(y, x) = valid ? 255 : 0;
+      if (valid) {
+        x0 = std::min(x0, x);
+        x1 = std::max(x1, x);
+        y0 = std::min(y0, y);
+        y1 = std::max(y1, y);
+      }
+    }
+  if (x1 < 0) return out;
+  // The scale space is built over the bounding box of the valid depth only (keypoints elsewhere
+  // are discarded anyway), with a margin for the descriptor windows near its edge.
+  const int margin = 24;
+  const cv::Rect roi(cv::Point(std::max(0, x0 - margin), std::max(0, y0 - margin)),
+                     cv::Point(std::min(depth.cols, x1 + 1 + margin), std::min(depth.rows, y1 + 1 + margin)));
+  const cv::Mat gray_roi = gray(roi), mask_roi = mask(roi);
 
   auto sift = cv::SIFT::create(0, params.octave_layers, params.contrast_threshold, 10.0, 1.6);
   std::vector<cv::KeyPoint> detected;
-  sift->detect(gray, detected, mask);
+  sift->detect(gray_roi, detected, mask_roi);
+  for (cv::KeyPoint& kp : detected) kp.pt += cv::Point2f(float(roi.x), float(roi.y));
   // Strongest first, so the caps below keep the best.
   std::stable_sort(detected.begin(), detected.end(),
                    [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
@@ -125,7 +143,9 @@ StatusOr<FrameFeatures> ExtractFeatures(const RgbdFrame& frame, const FeaturePar
   }
   if (kept.empty()) return out;
   cv::Mat desc;
-  sift->compute(gray, kept, desc);
+  for (cv::KeyPoint& kp : kept) kp.pt -= cv::Point2f(float(roi.x), float(roi.y));
+  sift->compute(gray_roi, kept, desc);
+  for (cv::KeyPoint& kp : kept) kp.pt += cv::Point2f(float(roi.x), float(roi.y));
   const int n = int(kept.size());
   if (desc.rows != n || desc.cols != VD_DESC_BYTES) return Internal("SIFT descriptors do not match the keypoints");
   out.u.resize(n);
@@ -270,6 +290,8 @@ Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& his
   }
   const int n_cand = int(cand_canonical_host_.size());
   const int num_frames = int(candidates.size());
+  cand_desc_t_host_.resize(cand_desc_host_.size());
+  vd_desc_transpose(cand_desc_host_.data(), n_cand, cand_desc_t_host_.data());
   stats->candidate_frames = num_frames;
   stats->candidate_features = n_cand;
   if (n_cand == 0) return Status::Ok();
@@ -282,7 +304,7 @@ Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& his
   VD_RETURN_IF_ERROR(ctx_->Reserve(&rows_, size_t(n_cur) * num_frames));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&cols_, size_t(n_cand)));
   VD_RETURN_IF_ERROR(ctx_->Upload(cur_desc_, cur.desc.data(), cur.desc.size()));
-  VD_RETURN_IF_ERROR(ctx_->Upload(cand_desc_, cand_desc_host_.data(), cand_desc_host_.size()));
+  VD_RETURN_IF_ERROR(ctx_->Upload(cand_desc_, cand_desc_t_host_.data(), cand_desc_t_host_.size()));
   VD_RETURN_IF_ERROR(ctx_->Upload(cand_canonical_, cand_canonical_host_.data(), size_t(n_cand)));
   VD_RETURN_IF_ERROR(ctx_->Upload(frames_, frames_host_.data(), frames_host_.size()));
   VD_RETURN_IF_ERROR(ctx_->Run("vd_feature_predict_kernel", size_t(n_cand), cand_canonical_, volume.def_pos, volume.vol,

@@ -165,7 +165,7 @@ class FeatureMatcher {
   ocl::Buffer<vd_float4> lift_points_, lift_out_;
   ocl::Buffer<int32_t> lift_pixels_;
   // Host staging, reused.
-  std::vector<uint8_t> cand_desc_host_;
+  std::vector<uint8_t> cand_desc_host_, cand_desc_t_host_;
   std::vector<vd_float4> cand_canonical_host_, predicted_host_;
   std::vector<int32_t> frames_host_;
   std::vector<VdMatchBest> rows_host_, cols_host_;

@@ -2,9 +2,9 @@
 
 namespace vd::cpu {
 
-void MatchDistances(const uint8_t* cur, int n_cur, const uint8_t* cand, int n_cand, float* dist) {
+void MatchDistances(const uint8_t* cur, int n_cur, const uint8_t* cand_t, int n_cand, float* dist) {
 #pragma omp parallel for schedule(static)
-  for (int b = 0; b < n_cand; ++b) vd_match_distances_column(b, cur, n_cur, cand, n_cand, dist);
+  for (int b = 0; b < n_cand; ++b) vd_match_distances_column(b, cur, n_cur, cand_t, n_cand, dist);
 }
 
 void MatchRows(const float* dist, int n_cur, int n_cand, const int32_t* frames, int num_frames, VdMatchBest* out) {

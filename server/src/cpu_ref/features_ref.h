@@ -8,8 +8,9 @@
 
 namespace vd::cpu {
 
-// The squared-distance matrix (n_cur x n_cand, row-major) of two descriptor sets.
-void MatchDistances(const uint8_t* cur, int n_cur, const uint8_t* cand, int n_cand, float* dist);
+// The squared-distance matrix (n_cur x n_cand, row-major) of two descriptor sets; cand_t in the
+// transposed layout (vd_desc_transpose).
+void MatchDistances(const uint8_t* cur, int n_cur, const uint8_t* cand_t, int n_cand, float* dist);
 // Row scans per (frame f, current feature a), item f * n_cur + a; frames as (begin, end) pairs.
 void MatchRows(const float* dist, int n_cur, int n_cand, const int32_t* frames, int num_frames, VdMatchBest* out);
 void MatchColumns(const float* dist, int n_cur, int n_cand, VdMatchBest* out);
