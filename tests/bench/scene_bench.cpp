@@ -59,8 +59,9 @@ int main(int argc, char** argv) {
   std::printf("wall clock per frame (Engine::Process) %.1f ms = %.2f fps\n", e->process_wall_ms,
               1000.0 / std::max(1e-9, e->process_wall_ms));
   std::printf("features per frame (mean): %.0f detected, %.0f lifted, %.0f matches; detection + description %.1f ms "
-              "(beside the frame's thread)\n",
-              e->mean_features, e->mean_lifted, e->mean_matches, e->mean_extract_ms);
+              "(beside the frame's thread), matching %.2f ms, lifting %.2f ms\n",
+              e->mean_features, e->mean_lifted, e->mean_matches, e->mean_extract_ms, e->mean_match_ms,
+              e->mean_lift_ms);
   std::printf("active grid points (mean) %.0f, OpenCL buffers peak %.1f MB, resident peak %.1f MB\n",
               e->mean_active_voxels, e->device_peak_bytes / 1e6, vd::PeakResidentBytes() / 1e6);
   return 0;

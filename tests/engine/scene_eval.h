@@ -31,7 +31,8 @@ struct SceneErrors {
   double mean_active_voxels = 0;
   size_t device_peak_bytes = 0;
   // Sparse features per frame (means): detected, lifted, matches used; detection + description ms.
-  double mean_features = 0, mean_lifted = 0, mean_matches = 0, mean_extract_ms = 0;
+  double mean_features = 0, mean_lifted = 0, mean_matches = 0, mean_extract_ms = 0, mean_match_ms = 0,
+         mean_lift_ms = 0;
 };
 
 struct SceneRun {
@@ -76,6 +77,8 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
     out.mean_lifted += r.features_lifted;
     out.mean_matches += r.sparse_matches;
     out.mean_extract_ms += r.feature_extract_ms;
+    out.mean_match_ms += r.feature_match_ms;
+    out.mean_lift_ms += r.feature_lift_ms;
     const TriangleMesh gt = scene->GroundTruthMesh(k);
     const MeshDistance dist(gt);
     double s = 0;
@@ -125,6 +128,8 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   out.mean_lifted /= n;
   out.mean_matches /= n;
   out.mean_extract_ms /= n;
+  out.mean_match_ms /= n;
+  out.mean_lift_ms /= n;
   for (double& v : out.stage_ms) v /= n;
   out.total_ms /= n;
   out.process_wall_ms /= n;

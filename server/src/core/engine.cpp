@@ -486,7 +486,8 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       MatchStats stats;
       VD_RETURN_IF_ERROR(matcher_.Match(features, history_, history_.Candidates(params_.features), volume_,
                                         ToVdPose(pose_), cam_, params_.features, &matches_, &stats));
-      result.times.ms[7] += MsSince(t0);
+      result.feature_match_ms = MsSince(t0);
+      result.times.ms[7] += result.feature_match_ms;
     }
   }
   if (!initialised_) {
@@ -533,7 +534,8 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
                                      !nonrigid, params_.features));
     for (const vd_float4& g : features.canonical) result.features_lifted += g.w > 0.f;
     history_.Add(std::move(features), params_.features.keyframe_interval);
-    result.times.ms[7] += MsSince(t0);
+    result.feature_lift_ms = MsSince(t0);
+    result.times.ms[7] += result.feature_lift_ms;
   }
   if (result.tracking_ok) {
     t0 = Clock::now();

@@ -111,6 +111,9 @@ struct FrameResult {
   int features_lifted = 0;
   int sparse_matches = 0;
   double feature_extract_ms = 0.0;
+  // The two parts of the "features" stage: matching against the history, lifting into canonical.
+  double feature_match_ms = 0.0;
+  double feature_lift_ms = 0.0;
 };
 
 class Engine {
