@@ -19,3 +19,34 @@ __kernel void vd_tsdf_integrate_active(__global float* tsdf, __global float* wei
   int gi = list[get_global_id(0)];
   vd_tsdf_integrate_deformed(tsdf, weight, color, gi, def_pos[gi], k_min, vol, cam, world_to_cam, depth, rgba);
 }
+
+/* Minimum and maximum depth per 8x8 pixel tile. */
+__kernel void vd_depth_tiles(__global const float* depth, VdCamera cam, __global float4* tiles, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int t = get_global_id(0);
+  tiles[t] = vd_depth_tile(t, depth, cam);
+}
+
+/* Bricks the current depth's truncation band may touch, one work item per brick. */
+__kernel void vd_brick_mark(__global const float4* tiles, VdCamera cam, VdPose world_to_cam, VdVolume vol,
+                            __global uint* flags, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int b = get_global_id(0);
+  flags[b] = vd_brick_in_band(b, tiles, cam, world_to_cam, vol);
+}
+
+/* list[offsets[b]] = b for every flagged brick. */
+__kernel void vd_brick_compact(__global const uint* flags, __global const uint* offsets, __global uint* list,
+                               int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int b = get_global_id(0);
+  if (flags[b]) list[offsets[b]] = (uint)b;
+}
+
+/* Integration over the listed bricks: 64 work items (rows of 8 grid points) per brick. */
+__kernel void vd_tsdf_integrate_bricks(__global const uint* list, __global float* tsdf, __global float* weight,
+                                       __global uint* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                                       __global const float* depth, __global const uint* rgba, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_tsdf_integrate_brick_row(get_global_id(0), list, tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
+}

@@ -71,4 +71,100 @@ VD_INLINE void vd_tsdf_integrate_deformed(VD_GLOBAL float* tsdf, VD_GLOBAL float
   vd_tsdf_integrate_point(tsdf, weight, color, gi, vd_pose_apply(world_to_cam, t), vol, cam, depth, rgba);
 }
 
+/* Bricks: 8^3 blocks of grid points, numbered x-fastest like the grid. Integration may run over
+ * the bricks the truncation band of some frame has touched ("allocated" bricks, kept across frames)
+ * instead of the whole grid, as hashed-block systems do: voxels outside them are only free space
+ * (sdf beyond the band) and unobserved space, which marching cubes never meshes. */
+#define VD_BRICK 8
+VD_INLINE int vd_bricks_x(VdVolume vol) { return (vol.dim_x + VD_BRICK - 1) / VD_BRICK; }
+VD_INLINE int vd_bricks_y(VdVolume vol) { return (vol.dim_y + VD_BRICK - 1) / VD_BRICK; }
+VD_INLINE int vd_bricks_z(VdVolume vol) { return (vol.dim_z + VD_BRICK - 1) / VD_BRICK; }
+
+/* Depth tiles: the minimum and maximum valid depth of each VD_DEPTH_TILE^2 pixel tile (x = min,
+ * y = max; min > max when the tile has no valid depth), the coarse image the brick test reads. */
+#define VD_DEPTH_TILE 8
+VD_INLINE int vd_depth_tiles_x(VdCamera cam) { return (cam.width + VD_DEPTH_TILE - 1) / VD_DEPTH_TILE; }
+VD_INLINE int vd_depth_tiles_y(VdCamera cam) { return (cam.height + VD_DEPTH_TILE - 1) / VD_DEPTH_TILE; }
+
+VD_INLINE vd_float4 vd_depth_tile(int tile, VD_GLOBAL const float* depth, VdCamera cam) {
+  int tx = tile % vd_depth_tiles_x(cam), ty = tile / vd_depth_tiles_x(cam);
+  float lo = 3.4e38f, hi = -3.4e38f;
+  for (int y = ty * VD_DEPTH_TILE; y < vd_min_i((ty + 1) * VD_DEPTH_TILE, cam.height); ++y)
+    for (int x = tx * VD_DEPTH_TILE; x < vd_min_i((tx + 1) * VD_DEPTH_TILE, cam.width); ++x) {
+      float d = depth[y * cam.width + x];
+      if (d > 0.0f) {
+        lo = fmin(lo, d);
+        hi = fmax(hi, d);
+      }
+    }
+  return VD_F4(lo, hi, 0.0f, 0.0f);
+}
+
+/* 1 when brick b may hold a grid point that integration updates within the truncation band:
+ * some valid depth d under the brick's projected footprint (nearest-pixel rounding included)
+ * with d - z in [-truncation, truncation] for z in the brick's camera depth range. Conservative:
+ * a brick it passes may still hold none (it then costs time, not correctness). */
+VD_INLINE vd_uint vd_brick_in_band(int b, VD_GLOBAL const vd_float4* tiles, VdCamera cam, VdPose world_to_cam,
+                                   VdVolume vol) {
+  int nbx = vd_bricks_x(vol), nby = vd_bricks_y(vol);
+  int bx = b % nbx, by = (b / nbx) % nby, bz = b / (nbx * nby);
+  float zmin = 3.4e38f, zmax = -3.4e38f, umin = 3.4e38f, umax = -3.4e38f, vmin = 3.4e38f, vmax = -3.4e38f;
+  int behind = 0;
+  for (int c = 0; c < 8; ++c) {
+    int x = vd_min_i(bx * VD_BRICK + ((c & 1) ? VD_BRICK - 1 : 0), vol.dim_x - 1);
+    int y = vd_min_i(by * VD_BRICK + ((c & 2) ? VD_BRICK - 1 : 0), vol.dim_y - 1);
+    int z = vd_min_i(bz * VD_BRICK + ((c & 4) ? VD_BRICK - 1 : 0), vol.dim_z - 1);
+    vd_float4 p = vd_pose_apply(world_to_cam, vd_voxel_position(vol, x, y, z));
+    zmin = fmin(zmin, p.z);
+    zmax = fmax(zmax, p.z);
+    if (p.z <= 1e-4f) {
+      behind = 1;
+      continue;
+    }
+    float u = vd_project_u(cam, p), v = vd_project_v(cam, p);
+    umin = fmin(umin, u);
+    umax = fmax(umax, u);
+    vmin = fmin(vmin, v);
+    vmax = fmax(vmax, v);
+  }
+  if (zmax <= 0.0f) return 0u;
+  int px0 = 0, px1 = cam.width - 1, py0 = 0, py1 = cam.height - 1;
+  if (!behind) {
+    px0 = vd_max_i((int)floor(umin + 0.5f), 0);
+    px1 = vd_min_i((int)floor(umax + 0.5f), cam.width - 1);
+    py0 = vd_max_i((int)floor(vmin + 0.5f), 0);
+    py1 = vd_min_i((int)floor(vmax + 0.5f), cam.height - 1);
+    if (px0 > px1 || py0 > py1) return 0u;
+  }
+  float lo = zmin - vol.truncation, hi = zmax + vol.truncation;
+  int ntx = vd_depth_tiles_x(cam);
+  for (int ty = py0 / VD_DEPTH_TILE; ty <= py1 / VD_DEPTH_TILE; ++ty)
+    for (int tx = px0 / VD_DEPTH_TILE; tx <= px1 / VD_DEPTH_TILE; ++tx) {
+      vd_float4 t = tiles[ty * ntx + tx];
+      if (t.x <= hi && t.y >= lo) return 1u;
+    }
+  return 0u;
+}
+
+/* Work item `item` of the brick integration: row (item % 64) of brick list[item / 64], up to 8
+ * grid points along x. */
+VD_INLINE void vd_tsdf_integrate_brick_row(int item, VD_GLOBAL const vd_uint* list, VD_GLOBAL float* tsdf,
+                                           VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color, VdVolume vol,
+                                           VdCamera cam, VdPose world_to_cam, VD_GLOBAL const float* depth,
+                                           VD_GLOBAL const vd_uint* rgba) {
+  int b = (int)list[item / (VD_BRICK * VD_BRICK)], r = item % (VD_BRICK * VD_BRICK);
+  int nbx = vd_bricks_x(vol), nby = vd_bricks_y(vol);
+  int bx = b % nbx, by = (b / nbx) % nby, bz = b / (nbx * nby);
+  int y = by * VD_BRICK + r % VD_BRICK, z = bz * VD_BRICK + r / VD_BRICK;
+  if (y >= vol.dim_y || z >= vol.dim_z) return;
+  int x0 = bx * VD_BRICK, x1 = vd_min_i(x0 + VD_BRICK, vol.dim_x);
+  vd_float4 p0 = vd_pose_apply(world_to_cam, vd_voxel_position(vol, x0, y, z));
+  vd_float4 step = vd_pose_rotate(world_to_cam, VD_F4(vol.voxel_size, 0.0f, 0.0f, 0.0f));
+  int row = vol.dim_x * (y + vol.dim_y * z);
+  for (int x = x0; x < x1; ++x) {
+    vd_float4 p = p0 + step * (float)(x - x0);
+    vd_tsdf_integrate_point(tsdf, weight, color, row + x, p, vol, cam, depth, rgba);
+  }
+}
+
 #endif /* VD_TSDF_H */

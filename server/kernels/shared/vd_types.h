@@ -46,6 +46,15 @@ VD_INLINE vd_float4 vd_pose_rotate(VdPose T, vd_float4 v) {
                T.r2.x * v.x + T.r2.y * v.y + T.r2.z * v.z, 0.0f);
 }
 
+/* The inverse of a rigid transform: R^T and -R^T t. */
+VD_INLINE VdPose vd_pose_inverse(VdPose T) {
+  VdPose o;
+  o.r0 = VD_F4(T.r0.x, T.r1.x, T.r2.x, -(T.r0.x * T.r0.w + T.r1.x * T.r1.w + T.r2.x * T.r2.w));
+  o.r1 = VD_F4(T.r0.y, T.r1.y, T.r2.y, -(T.r0.y * T.r0.w + T.r1.y * T.r1.w + T.r2.y * T.r2.w));
+  o.r2 = VD_F4(T.r0.z, T.r1.z, T.r2.z, -(T.r0.z * T.r0.w + T.r1.z * T.r1.w + T.r2.z * T.r2.w));
+  return o;
+}
+
 /* Pixel coordinates of a camera-space point (z > 0 assumed by the caller). */
 VD_INLINE float vd_project_u(VdCamera c, vd_float4 p) { return c.fx * p.x / p.z + c.cx; }
 VD_INLINE float vd_project_v(VdCamera c, vd_float4 p) { return c.fy * p.y / p.z + c.cy; }

@@ -76,8 +76,17 @@ class DeviceOps {
 
   Status AllocVolume(const VdVolume& vol, bool with_deformation, DeviceVolume* out);
   Status ResetVolume(DeviceVolume& v);
+  // Projective TSDF fusion over the 8^3 bricks the depth's truncation band may touch (shared/tsdf.h):
+  // the same update as IntegrateTsdfDense inside the band, free space beyond it left alone.
   Status IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
                        const ocl::Buffer<uint32_t>& rgba);
+  // Every grid point of the view (free space carved too); the reference and the benchmark peer.
+  Status IntegrateTsdfDense(DeviceVolume& v, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
+                            const ocl::Buffer<uint32_t>& rgba);
+  // Bricks integrated by the last IntegrateTsdf call (tests, statistics).
+  size_t last_integrated_bricks() const { return brick_count_; }
+  // The brick flags of the last IntegrateTsdf call (tests).
+  const ocl::Buffer<uint32_t>& brick_flags() const { return brick_flags_; }
 
   // Exclusive scan of in[0, n) into out[0, n], out[n] = total (out must hold n + 1).
   Status ScanExclusive(const ocl::Buffer<uint32_t>& in, size_t n, ocl::Buffer<uint32_t>& out, uint32_t* total);
@@ -131,6 +140,12 @@ class DeviceOps {
   ocl::Buffer<uint32_t> active_row_surface_;
   ocl::Buffer<uint32_t> active_row_offset_;
   std::vector<float> icp_host_;
+  // Brick integration scratch: per-brick flags of the current frame, their scan, the list.
+  ocl::Buffer<vd_float4> depth_tiles_;
+  ocl::Buffer<uint32_t> brick_flags_;
+  ocl::Buffer<uint32_t> brick_offsets_;
+  ocl::Buffer<uint32_t> brick_list_;
+  size_t brick_count_ = 0;
 };
 
 }  // namespace vd

@@ -236,3 +236,23 @@ void IcpReduce(const vd_float4* vmap, const vd_float4* nmap, const vd_float4* mo
 }
 
 }  // namespace vd::cpu
+
+namespace vd::cpu {
+
+void IntegrateTsdfBricks(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                         const float* depth, const uint32_t* rgba, std::vector<uint32_t>* flags) {
+  const int bricks = vd_bricks_x(vol) * vd_bricks_y(vol) * vd_bricks_z(vol);
+  flags->assign(size_t(bricks), 0u);
+  std::vector<vd_float4> tiles(size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam));
+  for (size_t t = 0; t < tiles.size(); ++t) tiles[t] = vd_depth_tile(int(t), depth, cam);
+  for (int b = 0; b < bricks; ++b) (*flags)[b] = vd_brick_in_band(b, tiles.data(), cam, world_to_cam, vol);
+  std::vector<uint32_t> list;
+  for (int b = 0; b < bricks; ++b)
+    if ((*flags)[b]) list.push_back(uint32_t(b));
+  const int items = int(list.size()) * VD_BRICK * VD_BRICK;
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < items; ++i)
+    vd_tsdf_integrate_brick_row(i, list.data(), tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
+}
+
+}  // namespace vd::cpu

@@ -22,6 +22,11 @@ void NormalMap(const vd_float4* vmap, vd_float4* nmap, int width, int height, fl
 void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
                    const float* depth, const uint32_t* rgba);
 
+// Brick integration (shared/tsdf.h): marks the bricks the depth's truncation band may touch into
+// flags (one per brick, 0/1) from 8x8 depth tiles, then integrates the marked bricks.
+void IntegrateTsdfBricks(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                         const float* depth, const uint32_t* rgba, std::vector<uint32_t>* flags);
+
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
 void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, VdVolume vol, vd_float4* out);
 
