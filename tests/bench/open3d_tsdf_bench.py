@@ -196,7 +196,7 @@ def run_server(args, voxel):
     with tempfile.TemporaryDirectory() as tmp:
         stats = os.path.join(tmp, "stats.json")
         out = subprocess.run([exe, "--input", "folder:" + args.data, "--voxel-size", repr(voxel),
-                              "--count", str(args.frames), "--stats-json", stats, "--quiet"],
+                              "--count", str(args.frames), "--stats-json", stats, "--quiet", "--rigid-only"],
                              capture_output=True, text=True)
         if out.returncode != 0 or not os.path.exists(stats):
             raise SystemExit("vdeform-server failed (rc %d): %s" % (out.returncode, out.stderr[-2000:]))
