@@ -43,7 +43,7 @@ __kernel void vd_brick_compact(__global const uint* flags, __global const uint* 
   if (flags[b]) list[offsets[b]] = (uint)b;
 }
 
-/* Integration over the listed bricks: 64 work items (rows of 8 grid points) per brick. */
+/* Integration over the listed bricks: VD_BRICK_ITEMS work items (z-slices) per brick. */
 __kernel void vd_tsdf_integrate_bricks(__global const uint* list, __global float* tsdf, __global float* weight,
                                        __global uint* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
                                        __global const float* depth, __global const uint* rgba, int vd_items) {

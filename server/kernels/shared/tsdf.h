@@ -82,7 +82,7 @@ VD_INLINE int vd_bricks_z(VdVolume vol) { return (vol.dim_z + VD_BRICK - 1) / VD
 
 /* Depth tiles: the minimum and maximum valid depth of each VD_DEPTH_TILE^2 pixel tile (x = min,
  * y = max; min > max when the tile has no valid depth), the coarse image the brick test reads. */
-#define VD_DEPTH_TILE 8
+#define VD_DEPTH_TILE 4
 VD_INLINE int vd_depth_tiles_x(VdCamera cam) { return (cam.width + VD_DEPTH_TILE - 1) / VD_DEPTH_TILE; }
 VD_INLINE int vd_depth_tiles_y(VdCamera cam) { return (cam.height + VD_DEPTH_TILE - 1) / VD_DEPTH_TILE; }
 
@@ -146,24 +146,30 @@ VD_INLINE vd_uint vd_brick_in_band(int b, VD_GLOBAL const vd_float4* tiles, VdCa
   return 0u;
 }
 
-/* Work item `item` of the brick integration: row (item % 64) of brick list[item / 64], up to 8
- * grid points along x. */
+/* Work items per brick of the brick integration: one per z-slice of VD_BRICK^2 grid points, so
+ * the per-item set-up is shared by 64 points and the inner loop walks contiguous x. */
+#define VD_BRICK_ITEMS VD_BRICK
+
+/* Work item `item` of the brick integration: slice (item % VD_BRICK) of brick list[item / VD_BRICK]. */
 VD_INLINE void vd_tsdf_integrate_brick_row(int item, VD_GLOBAL const vd_uint* list, VD_GLOBAL float* tsdf,
                                            VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color, VdVolume vol,
                                            VdCamera cam, VdPose world_to_cam, VD_GLOBAL const float* depth,
                                            VD_GLOBAL const vd_uint* rgba) {
-  int b = (int)list[item / (VD_BRICK * VD_BRICK)], r = item % (VD_BRICK * VD_BRICK);
+  int b = (int)list[item / VD_BRICK_ITEMS], r = item % VD_BRICK_ITEMS;
   int nbx = vd_bricks_x(vol), nby = vd_bricks_y(vol);
   int bx = b % nbx, by = (b / nbx) % nby, bz = b / (nbx * nby);
-  int y = by * VD_BRICK + r % VD_BRICK, z = bz * VD_BRICK + r / VD_BRICK;
-  if (y >= vol.dim_y || z >= vol.dim_z) return;
+  int z = bz * VD_BRICK + r;
+  if (z >= vol.dim_z) return;
   int x0 = bx * VD_BRICK, x1 = vd_min_i(x0 + VD_BRICK, vol.dim_x);
-  vd_float4 p0 = vd_pose_apply(world_to_cam, vd_voxel_position(vol, x0, y, z));
+  int y0 = by * VD_BRICK, y1 = vd_min_i(y0 + VD_BRICK, vol.dim_y);
   vd_float4 step = vd_pose_rotate(world_to_cam, VD_F4(vol.voxel_size, 0.0f, 0.0f, 0.0f));
-  int row = vol.dim_x * (y + vol.dim_y * z);
-  for (int x = x0; x < x1; ++x) {
-    vd_float4 p = p0 + step * (float)(x - x0);
-    vd_tsdf_integrate_point(tsdf, weight, color, row + x, p, vol, cam, depth, rgba);
+  for (int y = y0; y < y1; ++y) {
+    vd_float4 p0 = vd_pose_apply(world_to_cam, vd_voxel_position(vol, x0, y, z));
+    int row = vol.dim_x * (y + vol.dim_y * z);
+    for (int x = x0; x < x1; ++x) {
+      vd_float4 p = p0 + step * (float)(x - x0);
+      vd_tsdf_integrate_point(tsdf, weight, color, row + x, p, vol, cam, depth, rgba);
+    }
   }
 }
 

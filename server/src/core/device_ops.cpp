@@ -89,7 +89,7 @@ Status DeviceOps::IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_c
   VD_RETURN_IF_ERROR(ScanExclusive(brick_flags_, bricks, brick_offsets_, &total));
   VD_RETURN_IF_ERROR(ctx_->Run("vd_brick_compact", bricks, brick_flags_, brick_offsets_, brick_list_));
   brick_count_ = total;
-  return ctx_->Run("vd_tsdf_integrate_bricks", size_t(total) * VD_BRICK * VD_BRICK, brick_list_, v.tsdf, v.weight,
+  return ctx_->Run("vd_tsdf_integrate_bricks", size_t(total) * VD_BRICK_ITEMS, brick_list_, v.tsdf, v.weight,
                    v.color, v.vol, cam, world_to_cam, depth, rgba);
 }
 

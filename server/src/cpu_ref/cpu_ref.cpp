@@ -249,7 +249,7 @@ void IntegrateTsdfBricks(float* tsdf, float* weight, uint32_t* color, VdVolume v
   std::vector<uint32_t> list;
   for (int b = 0; b < bricks; ++b)
     if ((*flags)[b]) list.push_back(uint32_t(b));
-  const int items = int(list.size()) * VD_BRICK * VD_BRICK;
+  const int items = int(list.size()) * VD_BRICK_ITEMS;
 #pragma omp parallel for schedule(static)
   for (int i = 0; i < items; ++i)
     vd_tsdf_integrate_brick_row(i, list.data(), tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
