@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <string>
 #include <vector>
 
@@ -43,12 +44,22 @@ class WireWalker {
     return Skip(static_cast<size_t>(count) * element_bytes, field);
   }
   // int32 length including the terminating NUL, then the bytes; lcm-gen assigns length - 1 chars.
+  // LCM encoders write C strings (the C++ one takes the length from strlen), so the last byte must
+  // be the NUL and no other byte may be: a string with a NUL inside decodes to more characters than
+  // the file system, the logs and the next encode see (re-encoding it writes fewer bytes than
+  // getEncodedSize() promises, and LCM publishes the rest of the buffer uninitialised).
   Status String(const char* field) {
     uint64_t raw = 0;
     VD_RETURN_IF_ERROR(ReadBigEndian(4, field, &raw));
     const int32_t length = static_cast<int32_t>(static_cast<uint32_t>(raw));
     if (length < 1) return DataLoss(std::string(type_) + "." + field + " has string length " + std::to_string(length));
-    return Skip(static_cast<size_t>(length), field);
+    if (static_cast<size_t>(length) > size_ - pos_) return Short(field, static_cast<size_t>(length));
+    const uint8_t* text = data_ + pos_;
+    if (text[length - 1] != 0) return DataLoss(std::string(type_) + "." + field + " is not NUL-terminated");
+    if (std::memchr(text, 0, static_cast<size_t>(length) - 1) != nullptr)
+      return DataLoss(std::string(type_) + "." + field + " holds a NUL byte inside the string");
+    pos_ += static_cast<size_t>(length);
+    return Status::Ok();
   }
   Status Strings(int32_t count, const char* field) {
     // Each string takes at least 5 bytes; refuse before lcm-gen resizes the vector to count.
@@ -135,13 +146,16 @@ Status ValidateLcmWire<vdeform::server_status_t>(const void* data, size_t size) 
   VD_RETURN_IF_ERROR(w.Count("num_reject_reasons", &n));
   VD_RETURN_IF_ERROR(w.Strings(n, "reject_reason"));
   VD_RETURN_IF_ERROR(w.Array(n, 8, "reject_count"));
+  VD_RETURN_IF_ERROR(w.Skip(6 * 8, "sequence and control counters"));
   VD_RETURN_IF_ERROR(w.Skip(8, "last_processed_seq"));
   VD_RETURN_IF_ERROR(w.String("last_source_id"));
   VD_RETURN_IF_ERROR(w.Count("num_stages", &n));
   VD_RETURN_IF_ERROR(w.Strings(n, "stage_name"));
   VD_RETURN_IF_ERROR(w.Array(n, 4, "stage_ms_last"));
   VD_RETURN_IF_ERROR(w.Array(n, 4, "stage_ms_mean"));
-  return w.Skip(4 + 8 + 4 + 4 + 4 + 4 + 8, "fps..resident_memory_bytes");
+  VD_RETURN_IF_ERROR(w.Skip(4 + 8 + 4 + 4 + 4 + 4 + 8, "fps..resident_memory_bytes"));
+  VD_RETURN_IF_ERROR(w.Skip(8 + 8, "model_frames/checkpoint_utime"));
+  return w.String("checkpoint_message");
 }
 
 template <>

@@ -16,17 +16,6 @@ int64_t NowUs() {
   return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-std::string RejectReason(const Status& s) {
-  const std::string& m = s.message();
-  auto has = [&](const char* w) { return m.find(w) != std::string::npos; };
-  if (has("intrinsics")) return "bad_intrinsics";
-  if (has("encoding")) return "unknown_encoding";
-  if (has("payload") || has("too large") || has("exceeds")) return "oversized";
-  if (has("depth_scale")) return "bad_depth_scale";
-  if (has("expected") || has("size") || has("width") || has("height") || has("changed from")) return "wrong_size";
-  return "invalid_frame";
-}
-
 StatusOr<std::filesystem::path> SnapshotPath(const std::string& dir, const std::string& name) {
   if (name.empty()) return InvalidArgument("empty snapshot name");
   const std::filesystem::path rel(name);
@@ -53,13 +42,30 @@ int RunNode(const ServerOptions& options) {
     std::fprintf(stderr, "vdeform-server: %s\n", params.status().message().c_str());
     return 2;
   }
+  auto gate = options.ToGateOptions();
+  if (!gate.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", gate.status().message().c_str());
+    return 2;
+  }
+  if (options.resume && options.checkpoint_dir.empty()) {
+    std::fprintf(stderr, "vdeform-server: --resume needs --checkpoint DIR\n");
+    return 2;
+  }
+  if (!(options.checkpoint_interval >= 0)) {
+    std::fprintf(stderr, "vdeform-server: --checkpoint-interval must be >= 0\n");
+    return 2;
+  }
   auto engine = Engine::Create(*params, options.device);
   if (!engine.ok()) {
     std::fprintf(stderr, "vdeform-server: %s\n", engine.status().ToString().c_str());
     return 1;
   }
   VD_LOG_INFO << "vdeform-server on " << (*engine)->DeviceDescription() << ", LCM " << url;
-  Node node(options, &lcm, std::move(engine).value());
+  if (!gate->control_key.empty()) VD_LOG_INFO << "control commands RESET and SAVE_SNAPSHOT need an HMAC";
+  if (!gate->accept_sources.empty()) VD_LOG_INFO << "accepting frames only from: " << options.accept_sources;
+  Node node(options, &lcm, std::move(engine).value(), std::move(gate).value());
+  // A refused checkpoint is reported (log and status) and the server starts a new model.
+  if (options.resume) node.Resume();
   lcm.subscribe(kFrameChannel, &Node::OnFrame, &node);
   lcm.subscribe(kControlChannel, &Node::OnControl, &node);
   std::thread worker([&] { node.Work(&g_stop); });
@@ -71,6 +77,7 @@ int RunNode(const ServerOptions& options) {
     node.Tick();
   }
   worker.join();
+  node.MaybeCheckpoint(true);
   node.PrintSummary();
   return 0;
 }

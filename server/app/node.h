@@ -18,7 +18,9 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "core/checkpoint.h"
 #include "core/engine.h"
+#include "gate.h"
 #include "server_options.h"
 #include "stats.h"
 #include "vd/common/log.h"
@@ -27,45 +29,45 @@
 namespace vd {
 
 int64_t NowUs();
-// Short reason names for the status message's rejection breakdown.
-std::string RejectReason(const Status& s);
 // Keeps a relative snapshot name inside the snapshot directory.
 StatusOr<std::filesystem::path> SnapshotPath(const std::string& dir, const std::string& name);
 
 class Node {
  public:
-  Node(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine)
-      : options_(options), lcm_(lcm), engine_(std::move(engine)) {}
+  Node(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate = {})
+      : options_(options), lcm_(lcm), engine_(std::move(engine)), gate_(std::move(gate)) {}
 
   void OnFrame(const lcm::ReceiveBuffer* rbuf, const std::string&) {
     std::lock_guard<std::mutex> lock(mutex_);
     ++received_;
-    auto msg = DecodeLcm<vdeform::rgbd_frame_t>(rbuf->data, rbuf->data_size);
-    if (!msg.ok()) return Reject(msg.status(), "malformed_message");
-    // Stale or duplicated frames of a source (re-sends, reordering) are ignored.
-    auto last = last_seq_.find(msg->source_id);
-    if (last != last_seq_.end() && msg->seq <= last->second) {
-      ++stale_;
-      return;
+    FrameDecision d = gate_.OnFrame(rbuf->data, rbuf->data_size);
+    switch (d.verdict) {
+      case FrameVerdict::kRejected:
+        return Reject(d.status, d.reason);
+      case FrameVerdict::kStale:
+        // Re-sent or reordered: an older view of the scene than the model already holds.
+        return;
+      case FrameVerdict::kForeign:
+        if (gate_.counters().foreign == 1) VD_LOG_WARNING << "ignoring frames: " << d.status.message();
+        return;
+      case FrameVerdict::kAccept:
+        break;
     }
-    auto frame = MessageToFrame(*msg);
-    if (!frame.ok()) return Reject(frame.status());
-    last_seq_[msg->source_id] = msg->seq;
     if (mailbox_) ++dropped_;
-    mailbox_ = std::move(frame).value();
+    mailbox_ = std::move(d.frame);
     // Feature detection starts now, beside the frame the worker may be solving.
     engine_->Prefetch(*mailbox_);
     cv_.notify_one();
   }
 
   void OnControl(const lcm::ReceiveBuffer* rbuf, const std::string&) {
-    auto msg = DecodeLcm<vdeform::control_t>(rbuf->data, rbuf->data_size);
     std::lock_guard<std::mutex> lock(mutex_);
-    if (!msg.ok()) {
-      ++bad_control_;
-      VD_LOG_WARNING << "bad control message: " << msg.status().ToString();
+    ControlDecision d = gate_.OnControl(rbuf->data, rbuf->data_size, NowUs());
+    if (!d.status.ok()) {
+      VD_LOG_WARNING << "control command refused (from '" << d.msg.sender << "'): " << d.status.ToString();
       return;
     }
+    const auto* msg = &d.msg;
     switch (msg->command) {
       case vdeform::control_t::COMMAND_RESET:
         reset_requested_ = true;
@@ -79,8 +81,7 @@ class Node {
         mesh_requested_ = true;
         break;
       default:
-        ++bad_control_;
-        VD_LOG_WARNING << "unknown control command " << int(msg->command) << " from '" << msg->sender << "'";
+        break;  // the gate refuses unknown commands
     }
   }
 
@@ -99,6 +100,7 @@ class Node {
   // One step of the worker: a pending reset, snapshots, then the waiting frame. Returns whether a
   // frame was processed. Tests call it directly.
   bool RunOnce() {
+    MaybeCheckpoint(false);
     std::optional<RgbdFrame> frame;
     bool reset = false;
     std::vector<std::string> snapshots;
@@ -114,11 +116,16 @@ class Node {
       std::lock_guard<std::mutex> lock(mutex_);
       last_live_.reset();
       last_canonical_.reset();
+      model_frames_ = 0;
       state_ = vdeform::server_status_t::STATE_IDLE;
       message_ = "reset";
       VD_LOG_INFO << "model reset";
     }
-    for (const auto& name : snapshots) Snapshot(name);
+    for (const auto& name : snapshots) {
+      Snapshot(name);
+      // A snapshot request is also a checkpoint request.
+      MaybeCheckpoint(true);
+    }
     if (frame) Process(*frame);
     return frame.has_value();
   }
@@ -139,10 +146,103 @@ class Node {
   // Publishes a status message now (tests; the loop publishes twice a second via Tick).
   void PublishStatusNow() { PublishStatus(); }
 
+  // Loads the newest valid checkpoint of --checkpoint DIR into the engine (--resume). Returns
+  // false when one was refused or could not be restored (the server then starts a new model and
+  // says so in the status); true when loaded or when there was none.
+  bool Resume() {
+    ResumeResult r = LoadLatestCheckpoint(options_.checkpoint_dir);
+    std::string problems;
+    for (const auto& p : r.problems) {
+      VD_LOG_ERROR << "checkpoint refused: " << p;
+      problems += (problems.empty() ? "" : "; ") + p;
+    }
+    if (!r.state) {
+      if (r.problems.empty()) VD_LOG_INFO << "no checkpoint in '" << options_.checkpoint_dir << "'; starting a new model";
+      std::lock_guard<std::mutex> lock(mutex_);
+      checkpoint_message_ = problems.empty() ? "" : "resume failed: " + problems;
+      return r.problems.empty();
+    }
+    FrameResult meshes;
+    Status s = engine_->RestoreState(*r.state, &meshes);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!s.ok()) {
+      VD_LOG_ERROR << "cannot resume from " << r.loaded_path << ": " << s.ToString();
+      checkpoint_message_ = "resume failed: " + s.message();
+      return false;
+    }
+    model_frames_ = r.state->frames_fused;
+    last_processed_seq_ = r.state->last_seq;
+    last_source_id_ = r.state->source_id;
+    auto live = MeshToMessage(meshes.live_mesh, NowUs(), r.state->last_seq, vdeform::mesh_t::KIND_LIVE);
+    auto canonical = MeshToMessage(meshes.canonical_mesh, NowUs(), r.state->last_seq, vdeform::mesh_t::KIND_CANONICAL);
+    if (live.ok()) last_live_ = std::move(live).value();
+    if (canonical.ok()) last_canonical_ = std::move(canonical).value();
+    canonical_changed_ = true;
+    state_ = vdeform::server_status_t::STATE_TRACKING;
+    message_ = "resumed";
+    checkpoint_message_ = "resumed from " + r.loaded_path + (problems.empty() ? "" : " after refusing: " + problems);
+    VD_LOG_INFO << "resumed " << model_frames_ << " fused frames from " << r.loaded_path << " ("
+                << meshes.live_mesh.num_triangles() << " triangles)";
+    return problems.empty();
+  }
+
+  // Writes a checkpoint when --checkpoint is set, the model changed since the last one, and
+  // `force` or the interval has passed. Called by the worker between frames, and at shutdown.
+  void MaybeCheckpoint(bool force) {
+    if (options_.checkpoint_dir.empty() || !engine_->has_model()) return;
+    const auto now = std::chrono::steady_clock::now();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!model_dirty_) return;
+      if (!force && (options_.checkpoint_interval <= 0 ||
+                     now - last_checkpoint_ < std::chrono::duration<double>(options_.checkpoint_interval)))
+        return;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    EngineState state;
+    Status s = engine_->SaveState(&state);
+    size_t bytes = 0;
+    int64_t frames = 0;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      state.last_seq = last_processed_seq_;
+      state.source_id = last_source_id_;
+      frames = model_frames_;
+    }
+    if (s.ok()) s = WriteCheckpoint(options_.checkpoint_dir, state, &bytes);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_checkpoint_ = now;
+    if (!s.ok()) {
+      checkpoint_message_ = "checkpoint failed: " + s.message();
+      VD_LOG_ERROR << checkpoint_message_;
+      return;
+    }
+    model_dirty_ = false;
+    checkpoint_utime_ = NowUs();
+    ++checkpoints_written_;
+    checkpoint_message_ = "checkpoint of " + std::to_string(frames) + " frames, " + std::to_string(bytes >> 10) +
+                          " KiB, " + std::to_string(int(ms)) + " ms";
+    VD_LOG_DEBUG << checkpoint_message_;
+  }
+
+  int64_t checkpoints_written() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return checkpoints_written_;
+  }
+  GateCounters gate_counters() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return gate_.counters();
+  }
+
   void PrintSummary() const {
     std::lock_guard<std::mutex> lock(mutex_);
-    std::printf("vdeform-server: received %lld, processed %lld, dropped %lld, rejected %lld, stale %lld frames\n",
-                (long long)received_, (long long)processed_, (long long)dropped_, (long long)rejected_, (long long)stale_);
+    const GateCounters& g = gate_.counters();
+    std::printf("vdeform-server: received %lld, processed %lld, dropped %lld, rejected %lld, duplicate %lld, "
+                "reordered %lld, lost %lld, foreign %lld frames; %lld control commands refused\n",
+                (long long)received_, (long long)processed_, (long long)dropped_, (long long)rejected_,
+                (long long)g.duplicates, (long long)g.reordered, (long long)g.lost, (long long)g.foreign,
+                (long long)g.control_refused);
     if (stats_.count()) std::printf("stages (mean ms): %s\n", stats_.Summary().c_str());
   }
 
@@ -166,6 +266,10 @@ class Node {
       return;
     }
     ++processed_;
+    if (result->tracking_ok) {
+      ++model_frames_;
+      model_dirty_ = true;
+    }
     last_processed_seq_ = frame.seq;
     last_source_id_ = frame.source_id;
     stats_.Add(result->times, ms);
@@ -174,6 +278,7 @@ class Node {
     state_ = result->tracking_ok ? vdeform::server_status_t::STATE_TRACKING : vdeform::server_status_t::STATE_TRACKING_LOST;
     message_ = result->tracking_ok ? engine_->DeviceDescription() : result->tracking_message;
     dense_ = result->dense_correspondences;
+    sparse_ = result->sparse_matches;
     energy_initial_ = float(result->energy_initial);
     energy_final_ = float(result->energy_final);
     active_voxels_ = result->active_voxels;
@@ -216,6 +321,16 @@ class Node {
         st.reject_count.push_back(n);
       }
       st.num_reject_reasons = int32_t(st.reject_reason.size());
+      const GateCounters& g = gate_.counters();
+      st.frames_duplicate = g.duplicates;
+      st.frames_reordered = g.reordered;
+      st.frames_lost = g.lost;
+      st.frames_foreign = g.foreign;
+      st.source_restarts = g.source_restarts;
+      st.control_refused = g.control_refused;
+      st.model_frames = model_frames_;
+      st.checkpoint_utime = checkpoint_utime_;
+      st.checkpoint_message = checkpoint_message_;
       st.last_processed_seq = last_processed_seq_;
       st.last_source_id = last_source_id_;
       for (int s = 0; s < StageTimes::kCount; ++s) {
@@ -231,7 +346,7 @@ class Node {
       }
       st.active_voxels = active_voxels_;
       st.dense_correspondences = dense_;
-      st.sparse_correspondences = 0;
+      st.sparse_correspondences = sparse_;
       st.energy_initial = energy_initial_;
       st.energy_final = energy_final_;
       st.resident_memory_bytes = ResidentBytes();
@@ -295,8 +410,16 @@ class Node {
   bool reset_requested_ = false;
   bool mesh_requested_ = false;
   std::vector<std::string> snapshot_requests_;
-  std::map<std::string, int64_t> last_seq_;
-  int64_t received_ = 0, processed_ = 0, dropped_ = 0, rejected_ = 0, stale_ = 0, bad_control_ = 0;
+  FrameGate gate_;
+  int64_t received_ = 0, processed_ = 0, dropped_ = 0, rejected_ = 0;
+  // Frames fused into the current model (continued across --resume); whether it changed since
+  // the last checkpoint.
+  int64_t model_frames_ = 0;
+  bool model_dirty_ = false;
+  int64_t checkpoints_written_ = 0;
+  int64_t checkpoint_utime_ = 0;
+  std::string checkpoint_message_;
+  std::chrono::steady_clock::time_point last_checkpoint_ = std::chrono::steady_clock::now();
   std::map<std::string, int64_t> reject_counts_;
   int64_t last_processed_seq_ = -1;
   std::string last_source_id_;
@@ -305,6 +428,7 @@ class Node {
   StageStats stats_;
   std::deque<std::chrono::steady_clock::time_point> process_times_;
   int32_t dense_ = 0;
+  int32_t sparse_ = 0;
   float energy_initial_ = 0.f;
   float energy_final_ = 0.f;
   int64_t active_voxels_ = 0;

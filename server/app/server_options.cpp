@@ -1,6 +1,7 @@
 // vdeform-server's flags and their translation into engine and source parameters.
 #include "server_options.h"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace vd {
@@ -45,6 +46,19 @@ void ServerOptions::Register(FlagParser* f) {
   f->AddBool("list-devices", &list_devices, "List the OpenCL devices and exit");
   f->AddString("lcm-url", &lcm_url, "LCM URL (default: $LCM_DEFAULT_URL, else host-only multicast with a 4 MB receive buffer)");
   f->AddString("snapshot-dir", &snapshot_dir, "Directory SAVE_SNAPSHOT commands write into (paths cannot leave it)");
+  f->AddString("checkpoint", &checkpoint_dir,
+               "Directory for checkpoints of the model (volume, deformation field, feature history), written "
+               "atomically every --checkpoint-interval seconds, on SAVE_SNAPSHOT and at shutdown; empty = none");
+  f->AddFloat("checkpoint-interval", &checkpoint_interval,
+              "Seconds between periodic checkpoints while the model changes (0 = only on SAVE_SNAPSHOT and shutdown)");
+  f->AddBool("resume", &resume,
+             "Continue from the newest valid checkpoint in --checkpoint (a torn or corrupt one is reported, "
+             "kept aside and never loaded)");
+  f->AddString("accept-sources", &accept_sources,
+               "Comma-separated source ids whose frames are accepted (empty = any); others are counted and ignored");
+  f->AddString("control-key-file", &control_key_file,
+               "File holding the HMAC-SHA256 key (>= 16 bytes, mode 600) that RESET and SAVE_SNAPSHOT commands must "
+               "be signed with (vdeform-control --key-file); empty = control is not authenticated");
   f->AddBool("quiet", &quiet, "Only warnings and errors");
 }
 
@@ -71,6 +85,24 @@ StatusOr<EngineParams> ServerOptions::ToEngineParams() const {
   p.rigid_only = rigid_only;
   p.bilateral = !no_bilateral;
   return p;
+}
+
+StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
+  GateOptions g;
+  size_t begin = 0;
+  while (begin <= accept_sources.size() && !accept_sources.empty()) {
+    const size_t end = std::min(accept_sources.find(',', begin), accept_sources.size());
+    const std::string id = accept_sources.substr(begin, end - begin);
+    if (id.empty()) return InvalidArgument("--accept-sources has an empty source id: '" + accept_sources + "'");
+    g.accept_sources.push_back(id);
+    begin = end + 1;
+  }
+  if (!control_key_file.empty()) {
+    auto key = ReadControlKey(control_key_file);
+    if (!key.ok()) return key.status();
+    g.control_key = std::move(key).value();
+  }
+  return g;
 }
 
 SourceOptions ServerOptions::ToSourceOptions() const {

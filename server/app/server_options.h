@@ -4,6 +4,7 @@
 
 #include "core/engine.h"
 #include "flags.h"
+#include "gate.h"
 #include "vd/capture/source.h"
 
 namespace vd {
@@ -43,12 +44,23 @@ struct ServerOptions {
   // LCM node.
   std::string lcm_url;
   std::string snapshot_dir = "snapshots";
+  // Checkpoints (empty = none): written every checkpoint_interval seconds while the model changes,
+  // on SAVE_SNAPSHOT and at shutdown; --resume continues from the newest valid one.
+  std::string checkpoint_dir;
+  double checkpoint_interval = 30.0;
+  bool resume = false;
+  // Security: frames only from these source ids (comma-separated; empty = any); control commands
+  // that change state only with an HMAC under the key in this file.
+  std::string accept_sources;
+  std::string control_key_file;
   bool quiet = false;
 
   void Register(FlagParser* flags);
   // Fails on malformed --icp-iterations.
   StatusOr<EngineParams> ToEngineParams() const;
   SourceOptions ToSourceOptions() const;
+  // Reads the key file and splits accept_sources; fails on an unreadable or weak key.
+  StatusOr<GateOptions> ToGateOptions() const;
 };
 
 // Offline mode: the engine over a data set or synthetic source, no LCM. Returns the exit code.

@@ -132,6 +132,69 @@ Status Engine::DownloadDeformation(std::vector<vd_float4>* def_pos) {
   return ctx_->Download(volume_.def_pos, def_pos->data(), def_pos->size());
 }
 
+Status Engine::SaveState(EngineState* state) {
+  if (!initialised_) return FailedPrecondition("no model yet: nothing to save");
+  EngineState& s = *state;
+  s.vol = volume_.vol;
+  s.has_deformation = volume_.has_deformation();
+  VD_RETURN_IF_ERROR(DownloadVolume(&s.tsdf, &s.weight, &s.color));
+  s.def_pos.clear();
+  s.def_rot.clear();
+  if (s.has_deformation) {
+    s.def_pos.resize(volume_.num_voxels());
+    s.def_rot.resize(volume_.num_voxels());
+    VD_RETURN_IF_ERROR(ctx_->Download(volume_.def_pos, s.def_pos.data(), s.def_pos.size()));
+    VD_RETURN_IF_ERROR(ctx_->Download(volume_.def_rot, s.def_rot.data(), s.def_rot.size()));
+  }
+  s.pose = pose_;
+  s.cam = cam_;
+  s.frames_fused = frames_fused_;
+  s.frames_seen = frames_seen_;
+  s.history = history_.frames();
+  s.keyframes = history_.keyframes();
+  return Status::Ok();
+}
+
+Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
+  Reset();
+  VD_RETURN_IF_ERROR(s.Validate());
+  if (s.has_deformation == params_.rigid_only)
+    return FailedPrecondition(std::string("the checkpoint was written by a ") +
+                              (s.has_deformation ? "non-rigid" : "rigid-only") + " server; this one is " +
+                              (params_.rigid_only ? "rigid-only" : "non-rigid"));
+  const double budget = params_.max_grid_mb * 1e6 / (params_.rigid_only ? 12.0 : 44.0);
+  if (double(s.num_voxels()) > budget)
+    return FailedPrecondition("the checkpoint's grid (" + std::to_string(s.num_voxels()) +
+                              " points) does not fit max_grid_mb");
+  if (volume_.num_voxels() != s.num_voxels() || volume_.has_deformation() != s.has_deformation) {
+    volume_ = DeviceVolume();
+    VD_RETURN_IF_ERROR(ops_.AllocVolume(s.vol, s.has_deformation, &volume_));
+  }
+  volume_.vol = s.vol;
+  const size_t n = s.num_voxels();
+  VD_RETURN_IF_ERROR(ctx_->Upload(volume_.tsdf, s.tsdf.data(), n));
+  VD_RETURN_IF_ERROR(ctx_->Upload(volume_.weight, s.weight.data(), n));
+  VD_RETURN_IF_ERROR(ctx_->Upload(volume_.color, s.color.data(), n));
+  if (s.has_deformation) {
+    VD_RETURN_IF_ERROR(ctx_->Upload(volume_.def_pos, s.def_pos.data(), n));
+    VD_RETURN_IF_ERROR(ctx_->Upload(volume_.def_rot, s.def_rot.data(), n));
+  }
+  cam_ = s.cam;
+  pose_ = model_pose_ = s.pose;
+  frames_fused_ = s.frames_fused;
+  frames_seen_ = s.frames_seen;
+  history_.Restore(s.history, s.keyframes);
+  initialised_ = true;
+  // The surface the next frame is tracked against.
+  FrameResult scratch;
+  FrameResult* out = meshes ? meshes : &scratch;
+  out->pose = pose_;
+  out->seq = s.last_seq;
+  Status st = ExtractMesh(out);
+  if (!st.ok()) Reset();
+  return st;
+}
+
 void Engine::Reset() {
   initialised_ = false;
   frames_fused_ = 0;
@@ -534,6 +597,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
                                      !nonrigid, params_.features));
     for (const vd_float4& g : features.canonical) result.features_lifted += g.w > 0.f;
     history_.Add(std::move(features), params_.features.keyframe_interval);
+    history_.Compact(params_.features);
     result.feature_lift_ms = MsSince(t0);
     result.times.ms[7] += result.feature_lift_ms;
   }

@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "core/device_ops.h"
+#include "core/checkpoint.h"
 #include "core/features.h"
 #include "core/hierarchy.h"
 #include "core/solver.h"
@@ -142,6 +143,16 @@ class Engine {
   size_t device_peak_bytes() const { return ctx_->peak_bytes(); }
   // Downloads the grid (for snapshots and tests).
   Status DownloadVolume(std::vector<float>* tsdf, std::vector<float>* weight, std::vector<uint32_t>* color);
+
+  // Copies the model (volume, field, pose, camera, feature history) to the host, for checkpoints.
+  // FailedPrecondition before the first frame.
+  Status SaveState(EngineState* state);
+  // Continues from a saved model: the next frame is tracked against it as if this engine had
+  // processed the frames before. Refuses a state whose kind (rigid-only or not) differs from
+  // these parameters, or that does not fit max_grid_mb; on error the engine is left reset.
+  // meshes, when given, receives the restored live and canonical meshes.
+  Status RestoreState(const EngineState& state, FrameResult* meshes = nullptr);
+  int64_t frames_fused() const { return frames_fused_; }
 
   // Grid placement from the first frame's valid depth (exposed for tests).
   static StatusOr<VdVolume> PlaceVolume(const RgbdFrame& frame, const EngineParams& params);

@@ -61,6 +61,8 @@ Status FeatureParams::Validate() const {
   if (!(recent_frames >= 0 && recent_frames <= 64)) return BadFeature("recent_frames", recent_frames, "0..64");
   if (!(keyframe_interval >= 1)) return BadFeature("keyframe_interval", keyframe_interval, ">= 1");
   if (!(max_keyframes >= 0 && max_keyframes <= 1024)) return BadFeature("max_keyframes", max_keyframes, "0..1024");
+  if (!(max_stored_keyframes >= std::max(2, max_keyframes) && max_stored_keyframes <= 100000))
+    return BadFeature("max_stored_keyframes", max_stored_keyframes, "max(2, max_keyframes)..100000");
   if (!(pose_huber > 0.f)) return BadFeature("pose_huber", pose_huber, "> 0");
   if (!(lift_max_depth_gap > 0.f)) return BadFeature("lift_max_depth_gap", lift_max_depth_gap, "> 0");
   if (!(lift_tolerance > 0.f)) return BadFeature("lift_tolerance", lift_tolerance, "> 0");
@@ -263,6 +265,33 @@ std::vector<int> FeatureHistory::Candidates(const FeatureParams& params) const {
   }
   for (int i = recent_begin; i < n; ++i) out.push_back(i);
   return out;
+}
+
+void FeatureHistory::Compact(const FeatureParams& params) {
+  const int n = int(frames_.size());
+  const int recent_begin = std::max(0, n - params.recent_frames);
+  std::vector<int> keep_kf = keyframes_;
+  if (int(keep_kf.size()) > params.max_stored_keyframes) {
+    // Every second keyframe after the first goes; the last one stays (it sets the interval).
+    std::vector<int> thinned;
+    for (size_t i = 0; i < keep_kf.size(); ++i)
+      if (i == 0 || i % 2 == 0 || i + 1 == keep_kf.size()) thinned.push_back(keep_kf[i]);
+    keep_kf.swap(thinned);
+  }
+  std::vector<char> keep(n, 0);
+  for (int k : keep_kf) keep[k] = 1;
+  for (int i = recent_begin; i < n; ++i) keep[i] = 1;
+  if (std::count(keep.begin(), keep.end(), 1) == n) return;
+  std::vector<int> new_index(n, -1);
+  std::vector<FrameFeatures> frames;
+  for (int i = 0; i < n; ++i) {
+    if (!keep[i]) continue;
+    new_index[i] = int(frames.size());
+    frames.push_back(std::move(frames_[i]));
+  }
+  keyframes_.clear();
+  for (int k : keep_kf) keyframes_.push_back(new_index[k]);
+  frames_.swap(frames);
 }
 
 size_t FeatureHistory::num_features() const {

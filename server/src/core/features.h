@@ -48,6 +48,11 @@ struct FeatureParams {
   int recent_frames = 4;
   int keyframe_interval = 5;
   int max_keyframes = 16;
+  // Keyframes stored at most (bounds memory on long runs: ~26 KB each): beyond this, every second
+  // stored keyframe after the first is dropped, so they stay spread over the whole history.
+  // Frames that are neither keyframes nor among the recent ones can never be matched, and are
+  // dropped as soon as they leave the recent window.
+  int max_stored_keyframes = 256;
   // Huber threshold of a match's residual in the global pose estimate (metres): matches farther
   // off count linearly, so a wrong match cannot drag the pose.
   float pose_huber = 0.01f;
@@ -107,6 +112,16 @@ class FeatureHistory {
   void Add(FrameFeatures f, int keyframe_interval);
   // History positions to match frame `next_index` against (FeatureParams's policy).
   std::vector<int> Candidates(const FeatureParams& params) const;
+  // Drops what the policy can never match again (see FeatureParams::max_stored_keyframes).
+  void Compact(const FeatureParams& params);
+  // The stored frames and the positions of the keyframes among them (checkpoints).
+  const std::vector<FrameFeatures>& frames() const { return frames_; }
+  const std::vector<int>& keyframes() const { return keyframes_; }
+  // Replaces the contents (resume from a checkpoint; validated by the caller).
+  void Restore(std::vector<FrameFeatures> frames, std::vector<int> keyframes) {
+    frames_ = std::move(frames);
+    keyframes_ = std::move(keyframes);
+  }
   size_t num_frames() const { return frames_.size(); }
   const FrameFeatures& frame(int i) const { return frames_[i]; }
   size_t num_features() const;

@@ -18,6 +18,7 @@ enum class StatusCode {
   kFailedPrecondition,
   kInternal,
   kUnimplemented,
+  kPermissionDenied,
 };
 
 const char* StatusCodeName(StatusCode code);
@@ -49,6 +50,7 @@ inline Status Unavailable(std::string m) { return Status(StatusCode::kUnavailabl
 inline Status DeadlineExceeded(std::string m) { return Status(StatusCode::kDeadlineExceeded, std::move(m)); }
 inline Status FailedPrecondition(std::string m) { return Status(StatusCode::kFailedPrecondition, std::move(m)); }
 inline Status Internal(std::string m) { return Status(StatusCode::kInternal, std::move(m)); }
+inline Status PermissionDenied(std::string m) { return Status(StatusCode::kPermissionDenied, std::move(m)); }
 
 template <typename T>
 class [[nodiscard]] StatusOr {

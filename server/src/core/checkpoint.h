@@ -1,0 +1,67 @@
+#pragma once
+// Checkpoints: everything needed to continue a model in a new process (the canonical volume, the
+// deformation field, the camera pose and intrinsics, the feature history), written atomically
+// (temporary file, fsync, rename; the previous checkpoint kept beside it) with a SHA-256 of the
+// contents, so a torn or corrupt file is detected and reported, never loaded. Untouched 8^3
+// bricks (the reset values throughout) are not stored: a checkpoint is the size of the surface.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/features.h"
+#include "shared/vd_types.h"
+#include "vd/common/status.h"
+
+namespace vd {
+
+// Host copy of an engine's model.
+struct EngineState {
+  VdVolume vol{};
+  bool has_deformation = false;
+  std::vector<float> tsdf, weight;
+  std::vector<uint32_t> color;
+  std::vector<vd_float4> def_pos, def_rot;
+  Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+  VdCamera cam{};
+  int64_t frames_fused = 0;
+  int64_t frames_seen = 0;
+  std::vector<FrameFeatures> history;
+  std::vector<int> keyframes;
+  // Sequence number and source of the last frame fused (for the log and the status).
+  int64_t last_seq = -1;
+  std::string source_id;
+
+  size_t num_voxels() const { return size_t(vol.dim_x) * vol.dim_y * vol.dim_z; }
+  // Sizes consistent with vol, finite pose, history indices in range.
+  Status Validate() const;
+};
+
+// The serialised form (header + SHA-256 + payload).
+std::string EncodeCheckpoint(const EngineState& state);
+// Refuses wrong magic, a size other than the header says (torn), a digest mismatch (corrupt), and
+// any field out of range; never returns a partial state.
+StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes);
+
+// File names inside a checkpoint directory.
+inline constexpr const char* kCheckpointFile = "checkpoint.vdck";
+inline constexpr const char* kPreviousCheckpointFile = "checkpoint.prev.vdck";
+
+// Writes dir/checkpoint.vdck atomically, keeping the one before as checkpoint.prev.vdck.
+// bytes_written receives the file size when not null.
+Status WriteCheckpoint(const std::string& dir, const EngineState& state, size_t* bytes_written = nullptr);
+StatusOr<EngineState> ReadCheckpoint(const std::string& path);
+
+struct ResumeResult {
+  std::optional<EngineState> state;
+  // Which file was loaded, and one line per file refused (torn, corrupt, unreadable).
+  std::string loaded_path;
+  std::vector<std::string> problems;
+};
+// The newest valid checkpoint in dir: checkpoint.vdck, else checkpoint.prev.vdck. A refused file
+// is renamed to <name>.corrupt-<utime> (kept for inspection, never overwritten or loaded again).
+ResumeResult LoadLatestCheckpoint(const std::string& dir);
+
+}  // namespace vd

@@ -1,0 +1,353 @@
+// Checkpoints: exact round trip, torn and corrupt files refused (never a partial state), atomic
+// replacement with the previous checkpoint kept, an engine resumed from a checkpoint continuing
+// like the one that wrote it, and the node's --checkpoint / --resume path.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include "core/checkpoint.h"
+#include "node.h"
+#include "scene_eval.h"
+#include "shared/deformation.h"
+
+namespace vd {
+namespace {
+
+namespace fs = std::filesystem;
+using test::HaveDevice;
+
+// A small hand-made model: a grid that is not a multiple of the brick size, a few touched
+// voxels (one in a corner brick), a moved deformation point, two feature frames.
+EngineState SmallState(uint32_t seed) {
+  EngineState s;
+  s.vol.origin = vd_float4{-0.1f, -0.2f, 0.5f, 0.f};
+  s.vol.dim_x = 20;
+  s.vol.dim_y = 18;
+  s.vol.dim_z = 17;
+  s.vol.voxel_size = 0.01f;
+  s.vol.truncation = 0.03f;
+  s.vol.max_weight = 64.f;
+  s.has_deformation = true;
+  const size_t n = s.num_voxels();
+  s.tsdf.assign(n, 1.f);
+  s.weight.assign(n, 0.f);
+  s.color.assign(n, 0u);
+  s.def_pos.resize(n);
+  s.def_rot.assign(n, vd_float4{0.f, 0.f, 0.f, 1.f});
+  for (int z = 0; z < s.vol.dim_z; ++z)
+    for (int y = 0; y < s.vol.dim_y; ++y)
+      for (int x = 0; x < s.vol.dim_x; ++x) s.def_pos[vd_grid_index(s.vol, x, y, z)] = vd_rest_position(s.vol, x, y, z);
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (size_t i : {size_t(0), size_t(777), size_t(1234), n - 1}) {
+    s.tsdf[i] = u(rng);
+    s.weight[i] = 3.f;
+    s.color[i] = 0x00ff8040u + uint32_t(i);
+  }
+  s.def_pos[2000].x += 0.004f;
+  s.def_pos[2000].w = 5.f;
+  s.def_rot[2000] = vd_float4{0.1f, 0.f, 0.f, 0.995f};
+  s.pose(0, 3) = 0.25;
+  s.pose(1, 3) = -0.125;
+  s.cam = VdCamera{525.f, 525.f, 319.5f, 239.5f, 640, 480, 0, 0};
+  s.frames_fused = 9;
+  s.frames_seen = 10;
+  s.last_seq = 41;
+  s.source_id = "cam0";
+  for (int f = 0; f < 2; ++f) {
+    FrameFeatures ff;
+    ff.seq = 30 + f;
+    ff.frame_index = 5 * f;
+    for (int k = 0; k < 3 + f; ++k) {
+      ff.u.push_back(u(rng) * 100);
+      ff.v.push_back(u(rng) * 100);
+      ff.size.push_back(2.f);
+      ff.angle.push_back(u(rng));
+      ff.camera_points.push_back(vd_float4{u(rng), u(rng), 1.f, 1.f});
+      ff.canonical.push_back(vd_float4{5.f, 6.f, 7.f, 1.f});
+      for (int b = 0; b < VD_DESC_BYTES; ++b) ff.desc.push_back(uint8_t(rng()));
+    }
+    s.history.push_back(ff);
+  }
+  s.keyframes = {0, 1};
+  return s;
+}
+
+template <typename T>
+bool SameBytes(const std::vector<T>& a, const std::vector<T>& b) {
+  return a.size() == b.size() && (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(T)) == 0);
+}
+
+void ExpectSame(const EngineState& a, const EngineState& b) {
+  EXPECT_EQ(std::memcmp(&a.vol, &b.vol, sizeof(VdVolume)), 0);
+  EXPECT_EQ(a.has_deformation, b.has_deformation);
+  EXPECT_TRUE(SameBytes(a.tsdf, b.tsdf));
+  EXPECT_TRUE(SameBytes(a.weight, b.weight));
+  EXPECT_TRUE(SameBytes(a.color, b.color));
+  EXPECT_TRUE(SameBytes(a.def_rot, b.def_rot));
+  ASSERT_EQ(a.def_pos.size(), b.def_pos.size());
+  for (size_t i = 0; i < a.def_pos.size(); ++i) ASSERT_NEAR(a.def_pos[i].x, b.def_pos[i].x, 1e-6f) << i;
+  EXPECT_EQ(a.pose, b.pose);
+  EXPECT_EQ(std::memcmp(&a.cam, &b.cam, sizeof(VdCamera)), 0);
+  EXPECT_EQ(a.frames_fused, b.frames_fused);
+  EXPECT_EQ(a.frames_seen, b.frames_seen);
+  EXPECT_EQ(a.last_seq, b.last_seq);
+  EXPECT_EQ(a.source_id, b.source_id);
+  ASSERT_EQ(a.history.size(), b.history.size());
+  for (size_t f = 0; f < a.history.size(); ++f) {
+    EXPECT_EQ(a.history[f].seq, b.history[f].seq);
+    EXPECT_TRUE(SameBytes(a.history[f].desc, b.history[f].desc));
+    EXPECT_TRUE(SameBytes(a.history[f].canonical, b.history[f].canonical));
+    EXPECT_TRUE(SameBytes(a.history[f].u, b.history[f].u));
+  }
+  EXPECT_EQ(a.keyframes, b.keyframes);
+}
+
+TEST(CheckpointTest, RoundTripIsExactAndStoresOnlyTouchedBricks) {
+  const EngineState s = SmallState(1);
+  const std::string bytes = EncodeCheckpoint(s);
+  auto back = DecodeCheckpoint(bytes);
+  ASSERT_TRUE(back.ok()) << back.status().ToString();
+  ExpectSame(s, *back);
+  // 5 touched bricks of 27 (8^3 points, 44 bytes each at most) plus two feature frames.
+  const size_t dense = s.num_voxels() * 44;
+  EXPECT_LT(bytes.size(), dense / 3) << "untouched bricks must not be stored";
+}
+
+TEST(CheckpointTest, TornAndCorruptBytesAreRefusedNeverPartlyLoaded) {
+  const std::string bytes = EncodeCheckpoint(SmallState(2));
+  int refused = 0, runs = 0;
+  // Every truncation length for the header, spread lengths after it.
+  for (size_t len = 0; len < bytes.size(); len += (len < 64 ? 1 : 97)) {
+    ++runs;
+    auto r = DecodeCheckpoint(bytes.substr(0, len));
+    if (!r.ok() && r.status().code() == StatusCode::kDataLoss) ++refused;
+  }
+  std::mt19937 rng(7);
+  for (int k = 0; k < 300; ++k) {
+    std::string b = bytes;
+    b[rng() % b.size()] ^= char(1 + rng() % 255);
+    ++runs;
+    auto r = DecodeCheckpoint(b);
+    if (!r.ok() && r.status().code() == StatusCode::kDataLoss) ++refused;
+  }
+  EXPECT_EQ(refused, runs);
+  // A payload that is internally inconsistent but carries a matching digest (a writer bug, not a
+  // disk error) is refused by the field checks: a keyframe index past the history.
+  EngineState bad = SmallState(3);
+  bad.keyframes = {0, 5};
+  EXPECT_FALSE(bad.Validate().ok());
+  auto r = DecodeCheckpoint(EncodeCheckpoint(bad));
+  EXPECT_FALSE(r.ok());
+  std::string appended = bytes + "x";
+  EXPECT_NE(DecodeCheckpoint(appended).status().message().find("torn"), std::string::npos);
+}
+
+TEST(CheckpointTest, FilesAreReplacedAtomicallyAndACorruptOneFallsBack) {
+  const std::string dir = testing::TempDir() + "/vd_ckpt_files";
+  fs::remove_all(dir);
+  const EngineState a = SmallState(4), b = SmallState(5);
+  ASSERT_TRUE(WriteCheckpoint(dir, a).ok());
+  size_t bytes = 0;
+  ASSERT_TRUE(WriteCheckpoint(dir, b, &bytes).ok());
+  EXPECT_EQ(fs::file_size(fs::path(dir) / kCheckpointFile), bytes);
+  EXPECT_FALSE(fs::exists(fs::path(dir) / "checkpoint.vdck.tmp"));
+  ResumeResult r = LoadLatestCheckpoint(dir);
+  ASSERT_TRUE(r.state.has_value());
+  EXPECT_TRUE(r.problems.empty());
+  ExpectSame(b, *r.state);
+  // Flip one byte of the newest: refused, kept aside, the previous one loaded.
+  {
+    std::fstream f(fs::path(dir) / kCheckpointFile, std::ios::in | std::ios::out | std::ios::binary);
+    f.seekp(std::streamoff(bytes / 2));
+    f.put('\x5a');
+  }
+  r = LoadLatestCheckpoint(dir);
+  ASSERT_TRUE(r.state.has_value());
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_NE(r.problems[0].find("corrupt"), std::string::npos) << r.problems[0];
+  EXPECT_NE(r.loaded_path.find(kPreviousCheckpointFile), std::string::npos);
+  ExpectSame(a, *r.state);
+  int kept = 0;
+  for (const auto& e : fs::directory_iterator(dir)) kept += e.path().filename().string().find(".corrupt-") != std::string::npos;
+  EXPECT_EQ(kept, 1);
+  // Tear the previous one too: nothing is loaded, the reason says torn.
+  fs::resize_file(fs::path(dir) / kPreviousCheckpointFile, 1000);
+  r = LoadLatestCheckpoint(dir);
+  EXPECT_FALSE(r.state.has_value());
+  ASSERT_EQ(r.problems.size(), 1u);
+  EXPECT_NE(r.problems[0].find("torn"), std::string::npos) << r.problems[0];
+  // A directory without checkpoints: nothing loaded, nothing wrong.
+  r = LoadLatestCheckpoint(dir + "/none");
+  EXPECT_FALSE(r.state.has_value());
+  EXPECT_TRUE(r.problems.empty());
+}
+
+TEST(CheckpointTest, ResumedEngineContinuesLikeTheOriginal) {
+  if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  SyntheticOptions so;
+  so.num_frames = 40;
+  auto scene = MakeSyntheticScene("tube", so);
+  ASSERT_TRUE(scene.ok());
+  EngineParams p;
+  p.voxel_size = 0.006f;
+  auto a = Engine::Create(p, "");
+  auto b = Engine::Create(p, "");
+  ASSERT_TRUE(a.ok() && b.ok());
+  const int split = 12, total = 20;
+  for (int k = 0; k < split; ++k) {
+    auto r = (*a)->Process(scene.value()->Render(k));
+    ASSERT_TRUE(r.ok() && r->tracking_ok) << k;
+  }
+  EngineState saved;
+  ASSERT_TRUE((*a)->SaveState(&saved).ok());
+  EXPECT_GT(saved.history.size(), 0u);
+  const std::string bytes = EncodeCheckpoint(saved);
+  std::printf("checkpoint after %d frames: %zu KiB (dense grid %zu KiB)\n", split, bytes.size() >> 10,
+              saved.num_voxels() * 44 >> 10);
+  EXPECT_LT(bytes.size(), saved.num_voxels() * 44 / 2);
+  auto loaded = DecodeCheckpoint(bytes);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  FrameResult restored;
+  ASSERT_TRUE((*b)->RestoreState(*loaded, &restored).ok());
+  EXPECT_EQ((*b)->frames_fused(), (*a)->frames_fused());
+  EXPECT_GT(restored.live_mesh.num_triangles(), 1000u);
+  EXPECT_EQ((*b)->feature_history().num_frames(), (*a)->feature_history().num_frames());
+  double worst_t = 0, worst_r = 0;
+  for (int k = split; k < total; ++k) {
+    const RgbdFrame f = scene.value()->Render(k);
+    auto ra = (*a)->Process(f);
+    auto rb = (*b)->Process(f);
+    ASSERT_TRUE(ra.ok() && rb.ok());
+    ASSERT_TRUE(rb->tracking_ok) << k;
+    EXPECT_EQ(ra->sparse_matches > 0, rb->sparse_matches > 0) << k;
+    const Eigen::Matrix4d d = ra->pose.inverse() * rb->pose;
+    worst_t = std::max(worst_t, 1000.0 * d.topRightCorner<3, 1>().norm());
+    worst_r = std::max(worst_r, std::acos(std::clamp((d.topLeftCorner<3, 3>().trace() - 1.0) / 2.0, -1.0, 1.0)) * 180 / M_PI);
+    const double nv_a = double(ra->live_mesh.num_vertices()), nv_b = double(rb->live_mesh.num_vertices());
+    EXPECT_NEAR(nv_b / nv_a, 1.0, 0.01) << k;
+  }
+  std::printf("resumed vs original over %d frames: worst pose difference %.4f mm, %.5f deg\n", total - split, worst_t,
+              worst_r);
+  EXPECT_LT(worst_t, 0.5);
+  EXPECT_LT(worst_r, 0.05);
+}
+
+TEST(CheckpointTest, RigidCheckpointIsRefusedByANonRigidEngine) {
+  if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  EngineState s = SmallState(6);
+  s.has_deformation = false;
+  s.def_pos.clear();
+  s.def_rot.clear();
+  auto e = Engine::Create(EngineParams(), "");
+  ASSERT_TRUE(e.ok());
+  const Status st = (*e)->RestoreState(s);
+  EXPECT_EQ(st.code(), StatusCode::kFailedPrecondition) << st.ToString();
+  EXPECT_FALSE((*e)->has_model());
+}
+
+// The node: periodic/forced checkpoints, --resume restoring the model and its meshes, a corrupt
+// checkpoint reported in the status and a new model started.
+class NodeCheckpointTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+    options_.voxel_size = 0.008;
+    options_.checkpoint_dir = testing::TempDir() + "/vd_node_ckpt";
+    options_.checkpoint_interval = 0;
+    fs::remove_all(options_.checkpoint_dir);
+    SyntheticOptions so;
+    so.noise = false;
+    auto scene = MakeSyntheticScene("tube", so);
+    ASSERT_TRUE(scene.ok());
+    scene_ = std::move(scene).value();
+  }
+  std::unique_ptr<Node> MakeNode(lcm::LCM* lcm) {
+    auto engine = Engine::Create(*options_.ToEngineParams(), "");
+    EXPECT_TRUE(engine.ok());
+    auto node = std::make_unique<Node>(options_, lcm, std::move(engine).value());
+    lcm->subscribe(kFrameChannel, &Node::OnFrame, node.get());
+    lcm->subscribe(kControlChannel, &Node::OnControl, node.get());
+    lcm->subscribe(kStatusChannel, &NodeCheckpointTest::OnStatus, this);
+    return node;
+  }
+  void Feed(lcm::LCM* lcm, Node* node, int from, int to) {
+    for (int k = from; k < to; ++k) {
+      RgbdFrame f = scene_->Render(k);
+      f.seq = k;
+      f.source_id = "cam";
+      auto m = FrameToMessage(f, FrameEncodeOptions());
+      ASSERT_TRUE(m.ok());
+      lcm->publish(kFrameChannel, &*m);
+      while (lcm->handleTimeout(0) > 0) {
+      }
+      ASSERT_TRUE(node->RunOnce());
+    }
+  }
+  vdeform::server_status_t Status(lcm::LCM* lcm, Node* node) {
+    node->PublishStatusNow();
+    while (lcm->handleTimeout(0) > 0) {
+    }
+    return status_;
+  }
+  void OnStatus(const lcm::ReceiveBuffer*, const std::string&, const vdeform::server_status_t* m) { status_ = *m; }
+
+  ServerOptions options_;
+  std::unique_ptr<SyntheticScene> scene_;
+  vdeform::server_status_t status_;
+};
+
+TEST_F(NodeCheckpointTest, ResumeContinuesTheModelAndACorruptCheckpointStartsANewOne) {
+  {
+    lcm::LCM lcm("memq://");
+    auto node = MakeNode(&lcm);
+    Feed(&lcm, node.get(), 0, 4);
+    node->MaybeCheckpoint(false);  // interval 0: periodic checkpoints are off
+    EXPECT_EQ(node->checkpoints_written(), 0);
+    node->MaybeCheckpoint(true);  // SAVE_SNAPSHOT or shutdown
+    EXPECT_EQ(node->checkpoints_written(), 1);
+    node->MaybeCheckpoint(true);
+    EXPECT_EQ(node->checkpoints_written(), 1) << "nothing changed since";
+    const auto st = Status(&lcm, node.get());
+    EXPECT_EQ(st.model_frames, 4);
+    EXPECT_GT(st.checkpoint_utime, 0);
+    EXPECT_NE(st.checkpoint_message.find("checkpoint of 4 frames"), std::string::npos) << st.checkpoint_message;
+  }
+  options_.resume = true;
+  {
+    lcm::LCM lcm("memq://");
+    auto node = MakeNode(&lcm);
+    EXPECT_TRUE(node->Resume());
+    auto st = Status(&lcm, node.get());
+    EXPECT_EQ(st.model_frames, 4);
+    EXPECT_EQ(st.last_processed_seq, 3);
+    EXPECT_NE(st.checkpoint_message.find("resumed from"), std::string::npos) << st.checkpoint_message;
+    // The restarted capture client sends seq 4.. with newer times: tracked against the resumed model.
+    Feed(&lcm, node.get(), 4, 6);
+    st = Status(&lcm, node.get());
+    EXPECT_EQ(st.model_frames, 6);
+    EXPECT_EQ(int(st.state), int(vdeform::server_status_t::STATE_TRACKING)) << st.message;
+  }
+  // Corrupt the checkpoint: refused and reported, a new model starts from the next frame.
+  const fs::path file = fs::path(options_.checkpoint_dir) / kCheckpointFile;
+  fs::remove(fs::path(options_.checkpoint_dir) / kPreviousCheckpointFile);
+  fs::resize_file(file, fs::file_size(file) - 10);
+  {
+    lcm::LCM lcm("memq://");
+    auto node = MakeNode(&lcm);
+    EXPECT_FALSE(node->Resume());
+    auto st = Status(&lcm, node.get());
+    EXPECT_EQ(st.model_frames, 0);
+    EXPECT_NE(st.checkpoint_message.find("torn"), std::string::npos) << st.checkpoint_message;
+    Feed(&lcm, node.get(), 0, 2);
+    st = Status(&lcm, node.get());
+    EXPECT_EQ(st.model_frames, 2);
+  }
+}
+
+}  // namespace
+}  // namespace vd

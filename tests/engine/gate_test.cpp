@@ -1,0 +1,147 @@
+// FrameGate: what the node accepts from the network. Sequence numbers (duplicates, reordering,
+// losses, client restarts), source filtering, and authenticated control with replay protection.
+#include <gtest/gtest.h>
+
+#include "gate.h"
+#include "vd/capture/synthetic.h"
+
+namespace vd {
+namespace {
+
+class GateTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    SyntheticOptions so;
+    so.noise = false;
+    so.width = 160;
+    so.height = 120;
+    auto scene = MakeSyntheticScene("tube", so);
+    ASSERT_TRUE(scene.ok()) << scene.status().ToString();
+    frame_ = (*scene)->Render(0);
+  }
+  std::vector<uint8_t> Bytes(const std::string& source, int64_t seq, int64_t utime, bool corrupt = false) {
+    RgbdFrame f = frame_;
+    f.source_id = source;
+    f.seq = seq;
+    f.utime = utime;
+    auto m = FrameToMessage(f, FrameEncodeOptions());
+    EXPECT_TRUE(m.ok());
+    if (corrupt) m->width = 7;
+    std::vector<uint8_t> b(m->getEncodedSize());
+    m->encode(b.data(), 0, int(b.size()));
+    return b;
+  }
+  FrameVerdict Send(FrameGate* g, const std::string& source, int64_t seq, int64_t utime, bool corrupt = false) {
+    const auto b = Bytes(source, seq, utime, corrupt);
+    FrameDecision d = g->OnFrame(b.data(), b.size());
+    EXPECT_EQ(d.verdict == FrameVerdict::kAccept, d.frame.has_value());
+    if (d.frame) EXPECT_EQ(d.frame->seq, seq);
+    return d.verdict;
+  }
+  RgbdFrame frame_;
+};
+
+TEST_F(GateTest, SequenceNumbersCountDuplicatesReordersLossesAndRestarts) {
+  FrameGate g(GateOptions{});
+  EXPECT_EQ(Send(&g, "cam", 0, 1000), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "cam", 1, 2000), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "cam", 1, 2000), FrameVerdict::kStale) << "duplicate";
+  EXPECT_EQ(Send(&g, "cam", 4, 5000), FrameVerdict::kAccept) << "2 and 3 lost";
+  EXPECT_EQ(Send(&g, "cam", 3, 4000), FrameVerdict::kStale) << "3 arrives late";
+  EXPECT_EQ(Send(&g, "cam", 2, 3000), FrameVerdict::kStale);
+  // Another source has its own sequence.
+  EXPECT_EQ(Send(&g, "other", 0, 1500), FrameVerdict::kAccept);
+  // The client restarts: seq from 0 again with a newer capture time.
+  EXPECT_EQ(Send(&g, "cam", 0, 9000), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "cam", 1, 9100), FrameVerdict::kAccept);
+  // A corrupt frame with a high seq is rejected and does not move the sequence.
+  EXPECT_EQ(Send(&g, "cam", 100, 9200, true), FrameVerdict::kRejected);
+  EXPECT_EQ(Send(&g, "cam", 2, 9300), FrameVerdict::kAccept);
+  const GateCounters& c = g.counters();
+  EXPECT_EQ(c.received, 11);
+  EXPECT_EQ(c.duplicates, 1);
+  EXPECT_EQ(c.reordered, 2);
+  EXPECT_EQ(c.lost, 2);
+  EXPECT_EQ(c.source_restarts, 1);
+  EXPECT_EQ(c.rejected, 1);
+  EXPECT_EQ(c.foreign, 0);
+}
+
+TEST_F(GateTest, OnlyAcceptedSourcesPass) {
+  GateOptions o;
+  o.accept_sources = {"left", "right"};
+  FrameGate g(o);
+  EXPECT_EQ(Send(&g, "left", 0, 1), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "right", 0, 1), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "intruder", 0, 1), FrameVerdict::kForeign);
+  EXPECT_EQ(Send(&g, "lef", 1, 2), FrameVerdict::kForeign) << "exact ids, not prefixes";
+  EXPECT_EQ(g.counters().foreign, 2);
+  const std::vector<uint8_t> junk(64, 0x5a);
+  EXPECT_EQ(g.OnFrame(junk.data(), junk.size()).verdict, FrameVerdict::kRejected);
+}
+
+std::vector<uint8_t> Encode(const vdeform::control_t& m) {
+  std::vector<uint8_t> b(m.getEncodedSize());
+  m.encode(b.data(), 0, int(b.size()));
+  return b;
+}
+
+vdeform::control_t Control(int8_t command, int64_t utime, const std::string& path = "") {
+  vdeform::control_t m{};
+  m.utime = utime;
+  m.command = command;
+  m.path = path;
+  m.sender = "test";
+  m.auth_size = 0;
+  return m;
+}
+
+TEST(GateControlTest, WithoutAKeyEveryKnownCommandIsTaken) {
+  FrameGate g(GateOptions{});
+  for (int8_t c : {vdeform::control_t::COMMAND_RESET, vdeform::control_t::COMMAND_SAVE_SNAPSHOT,
+                   vdeform::control_t::COMMAND_REQUEST_MESH}) {
+    const auto b = Encode(Control(c, 5, "x"));
+    EXPECT_TRUE(g.OnControl(b.data(), b.size(), 0).status.ok());
+  }
+  const auto unknown = Encode(Control(17, 5));
+  EXPECT_FALSE(g.OnControl(unknown.data(), unknown.size(), 0).status.ok());
+  const std::vector<uint8_t> junk(30, 1);
+  EXPECT_FALSE(g.OnControl(junk.data(), junk.size(), 0).status.ok());
+  EXPECT_EQ(g.counters().control_accepted, 3);
+  EXPECT_EQ(g.counters().control_refused, 2);
+}
+
+TEST(GateControlTest, WithAKeyStateChangesNeedAFreshValidHmac) {
+  GateOptions o;
+  o.control_key = "a-sixteen-byte-key!!";
+  FrameGate g(o);
+  const int64_t now = 1764633600000000;
+  auto send = [&](const vdeform::control_t& m) {
+    const auto b = Encode(m);
+    return g.OnControl(b.data(), b.size(), now).status;
+  };
+  // Viewers stay read-only and keyless: REQUEST_MESH needs no HMAC.
+  EXPECT_TRUE(send(Control(vdeform::control_t::COMMAND_REQUEST_MESH, now)).ok());
+  EXPECT_EQ(send(Control(vdeform::control_t::COMMAND_RESET, now)).code(), StatusCode::kPermissionDenied);
+  vdeform::control_t reset = Control(vdeform::control_t::COMMAND_RESET, now);
+  SignControl(o.control_key, &reset);
+  EXPECT_TRUE(send(reset).ok());
+  EXPECT_FALSE(send(reset).ok()) << "replayed";
+  vdeform::control_t wrong = Control(vdeform::control_t::COMMAND_SAVE_SNAPSHOT, now + 10, "snap");
+  SignControl("another-sixteen-byte-key", &wrong);
+  EXPECT_FALSE(send(wrong).ok());
+  vdeform::control_t old = Control(vdeform::control_t::COMMAND_SAVE_SNAPSHOT, now - 60'000'000, "snap");
+  SignControl(o.control_key, &old);
+  EXPECT_FALSE(send(old).ok()) << "a minute old";
+  vdeform::control_t snap = Control(vdeform::control_t::COMMAND_SAVE_SNAPSHOT, now + 20, "snap");
+  SignControl(o.control_key, &snap);
+  snap.path = "../../etc";
+  EXPECT_FALSE(send(snap).ok()) << "path changed after signing";
+  snap.path = "snap";
+  EXPECT_TRUE(send(snap).ok());
+  EXPECT_EQ(g.counters().control_accepted, 3);
+  EXPECT_EQ(g.counters().control_refused, 5);
+}
+
+}  // namespace
+}  // namespace vd
