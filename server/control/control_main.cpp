@@ -42,6 +42,46 @@ std::optional<vdeform::server_status_t> WaitStatus(lcm::LCM* lcm, StatusWatch* w
   return std::nullopt;
 }
 
+const char* StateName(int8_t s) {
+  switch (s) {
+    case vdeform::server_status_t::STATE_IDLE: return "IDLE";
+    case vdeform::server_status_t::STATE_TRACKING: return "TRACKING";
+    case vdeform::server_status_t::STATE_TRACKING_LOST: return "TRACKING_LOST";
+    case vdeform::server_status_t::STATE_ERROR: return "ERROR";
+    default: return "INVALID";
+  }
+}
+
+// One key=value per line: easy to read, grep and parse in scripts.
+void PrintStatus(const vdeform::server_status_t& st) {
+  auto i = [](const char* k, long long v) { std::printf("%s=%lld\n", k, v); };
+  std::printf("state=%s\nmessage=%s\n", StateName(st.state), st.message.c_str());
+  i("frames_received", st.frames_received);
+  i("frames_processed", st.frames_processed);
+  i("frames_dropped", st.frames_dropped);
+  i("frames_rejected", st.frames_rejected);
+  for (int k = 0; k < st.num_reject_reasons; ++k)
+    std::printf("rejected_%s=%lld\n", st.reject_reason[k].c_str(), (long long)st.reject_count[k]);
+  i("frames_duplicate", st.frames_duplicate);
+  i("frames_reordered", st.frames_reordered);
+  i("frames_lost", st.frames_lost);
+  i("frames_foreign", st.frames_foreign);
+  i("source_restarts", st.source_restarts);
+  i("control_refused", st.control_refused);
+  i("last_processed_seq", st.last_processed_seq);
+  std::printf("last_source_id=%s\n", st.last_source_id.c_str());
+  i("model_frames", st.model_frames);
+  std::printf("fps=%.2f\n", st.fps);
+  i("active_voxels", st.active_voxels);
+  i("dense_correspondences", st.dense_correspondences);
+  i("sparse_correspondences", st.sparse_correspondences);
+  i("resident_memory_bytes", st.resident_memory_bytes);
+  i("checkpoint_utime", st.checkpoint_utime);
+  std::printf("checkpoint_message=%s\n", st.checkpoint_message.c_str());
+  for (int k = 0; k < st.num_stages; ++k)
+    std::printf("stage_ms_mean_%s=%.2f\n", st.stage_name[k].c_str(), st.stage_ms_mean[k]);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -50,8 +90,9 @@ int main(int argc, char** argv) {
   vd::FlagParser flags(
       "vdeform-control: send a control command to a running vdeform-server.\n"
       "  vdeform-control --command reset|snapshot|request-mesh [--path NAME] [--key-file FILE]\n"
+      "  vdeform-control --command status     print the server's status as key=value lines (monitoring)\n"
       "Exit status: 0 taken, 1 refused by the server or no server answered within --wait, 2 usage error.");
-  flags.AddString("command", &command, "reset (drop the model), snapshot (write meshes, volume and a checkpoint), "
+  flags.AddString("command", &command, "status (print the server's status), reset (drop the model), snapshot (write meshes, volume and a checkpoint), "
                                        "request-mesh (republish the current meshes)");
   flags.AddString("path", &path, "snapshot: a name relative to the server's --snapshot-dir");
   flags.AddString("key-file", &key_file, "The server's --control-key-file: signs the command with HMAC-SHA256");
@@ -79,8 +120,8 @@ int main(int argc, char** argv) {
     }
   } else if (command == "request-mesh") {
     msg.command = vdeform::control_t::COMMAND_REQUEST_MESH;
-  } else {
-    std::fprintf(stderr, "vdeform-control: --command must be reset, snapshot or request-mesh (got '%s')\n",
+  } else if (command != "status") {
+    std::fprintf(stderr, "vdeform-control: --command must be status, reset, snapshot or request-mesh (got '%s')\n",
                  command.c_str());
     return 2;
   }
@@ -117,6 +158,15 @@ int main(int argc, char** argv) {
                    url.c_str(), wait);
       return 1;
     }
+  }
+  if (command == "status") {
+    if (!before) before = WaitStatus(&lcm, &watch, 3.0, 0);
+    if (!before) {
+      std::fprintf(stderr, "vdeform-control: no server status on '%s'\n", url.c_str());
+      return 1;
+    }
+    PrintStatus(*before);
+    return 0;
   }
   const int64_t sent_us = NowUs();
   if (lcm.publish(vd::kControlChannel, &msg) != 0) {
