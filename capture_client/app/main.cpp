@@ -270,9 +270,7 @@ int Run(const Args& a) {
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::fprintf(stderr,
-                 "vdeform-capture: error: cannot initialise LCM at '%s' (on a loopback-only host multicast needs "
-                 "'ip route add 224.0.0.0/4 dev lo')\n",
-                 url.c_str());
+                 "vdeform-capture: error: cannot initialise LCM at '%s' %s\n", url.c_str(), vd::kLcmRouteHint);
     return 1;
   }
   PacingOptions pacing;

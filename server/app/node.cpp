@@ -32,9 +32,8 @@ int RunNode(const ServerOptions& options) {
   lcm::LCM lcm(url);
   if (!lcm.good()) {
     std::fprintf(stderr,
-                 "vdeform-server: cannot open LCM at '%s' (on a host with only loopback: "
-                 "ip route add 224.0.0.0/4 dev lo; see README)\n",
-                 url.c_str());
+                 "vdeform-server: cannot open LCM at '%s' %s\n",
+                 url.c_str(), kLcmRouteHint);
     return 1;
   }
   auto params = options.ToEngineParams();

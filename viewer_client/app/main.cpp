@@ -105,8 +105,8 @@ int Main(int argc, char** argv) {
   const std::string url = vd::ResolveLcmUrl(options.lcm_url);
   lcm::LCM lcm(url);
   if (!lcm.good()) {
-    std::fprintf(stderr, "vdeform-viewer: cannot open LCM at '%s' (on a loopback-only host: ip route add 224.0.0.0/4 dev lo)\n",
-                 url.c_str());
+    std::fprintf(stderr, "vdeform-viewer: cannot open LCM at '%s' %s\n",
+                 url.c_str(), vd::kLcmRouteHint);
     return 1;
   }
 

@@ -28,6 +28,9 @@ inline constexpr int64_t kMaxPayloadBytes = 6 * 1024 * 1024;
 // Multicast on the host only (ttl=0) with a 4 MB receive buffer: STACK.md measured 71 of 300
 // frames arriving with the kernel default buffer and all 300 with this one.
 inline constexpr const char* kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304";
+// What to check when LCM cannot be opened (appended to the programs' error).
+inline constexpr const char* kLcmRouteHint =
+    "(no multicast route? one host: ip route add 224.0.0.0/4 dev lo; several hosts: the same on the LAN interface; see deploy/prepare-host.sh --check and docs/OPERATIONS.md)";
 // The flag if given, else $LCM_DEFAULT_URL, else kDefaultLcmUrl.
 std::string ResolveLcmUrl(const std::string& flag_value);
 
