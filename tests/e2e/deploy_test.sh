@@ -36,6 +36,19 @@ for unit in "$root"/deploy/systemd/*.service; do
 done
 grep -q '^POCL_CACHE_DIR=' "$root/deploy/vdeform-server.env" || bad "server.env does not set POCL_CACHE_DIR"
 
+# The server flags in the env file's VDEFORM_SERVER_ARGS and the Containerfile's CMD exist, and
+# every build output the Containerfile installs is built (the image itself cannot be built here:
+# no container daemon, no registry).
+server_help=$("$build/server/vdeform-server" --help)
+args=$(sed -n 's/^VDEFORM_SERVER_ARGS="\(.*\)"/\1/p' "$root/deploy/vdeform-server.env")
+cmd=$(sed -n 's/^CMD \[\(.*\)\]/\1/p' "$root/deploy/Containerfile" | tr -d '",')
+for f in $(echo "$args $cmd" | grep -oE -- '--[a-z0-9-]+' | sort -u); do
+  echo "$server_help" | grep -qE "^  $f( |$)" || bad "deploy uses $f, which vdeform-server does not know"
+done
+for out in $(grep -oE '/src/vdeform/build/[A-Za-z0-9_/.-]+' "$root/deploy/Containerfile" | sed 's|/src/vdeform/build/||'); do
+  [ -x "$build/$out" ] || bad "the Containerfile installs build/$out, which the build does not make"
+done
+
 # prepare-host.sh: a well-formed report whatever the host, and a failing check when the
 # requirement cannot be met (a receive buffer larger than any host has).
 out=$("$root/deploy/prepare-host.sh" --check)
@@ -48,6 +61,8 @@ out=$(VDEFORM_RMEM=999999999999 "$root/deploy/prepare-host.sh" --check)
 echo "$out" | grep -qE '^FIX  rmem: ' || bad "no FIX line for the receive buffer: $out"
 "$root/deploy/prepare-host.sh" --nonsense >/dev/null 2>&1
 [ $? = 2 ] || bad "prepare-host.sh accepted an unknown mode"
+"$root/deploy/prepare-host.sh" --check --dev no-such-interface0 >/dev/null 2>&1
+[ $? = 2 ] || bad "prepare-host.sh accepted an interface that does not exist"
 
 [ "$fail" = 0 ] && echo "deploy files: OK"
 exit "$fail"
