@@ -27,12 +27,15 @@ __kernel void vd_depth_tiles(__global const float* depth, VdCamera cam, __global
   tiles[t] = vd_depth_tile(t, depth, cam);
 }
 
-/* Bricks the current depth's truncation band may touch, one work item per brick. */
+/* Bricks (flag 0/1) and their octants (mask) the current depth's truncation band may touch, one
+ * work item per brick. */
 __kernel void vd_brick_mark(__global const float4* tiles, VdCamera cam, VdPose world_to_cam, VdVolume vol,
-                            __global uint* flags, int vd_items) {
+                            __global uint* flags, __global uint* masks, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int b = get_global_id(0);
-  flags[b] = vd_brick_in_band(b, tiles, cam, world_to_cam, vol);
+  uint m = vd_brick_octants(b, tiles, cam, world_to_cam, vol);
+  masks[b] = m;
+  flags[b] = m != 0u ? 1u : 0u;
 }
 
 /* list[offsets[b]] = b for every flagged brick. */
@@ -44,9 +47,11 @@ __kernel void vd_brick_compact(__global const uint* flags, __global const uint* 
 }
 
 /* Integration over the listed bricks: VD_BRICK_ITEMS work items (z-slices) per brick. */
-__kernel void vd_tsdf_integrate_bricks(__global const uint* list, __global float* tsdf, __global float* weight,
-                                       __global uint* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
-                                       __global const float* depth, __global const uint* rgba, int vd_items) {
+__kernel void vd_tsdf_integrate_bricks(__global const uint* list, __global const uint* masks, __global float* tsdf,
+                                       __global float* weight, __global uint* color, VdVolume vol, VdCamera cam,
+                                       VdPose world_to_cam, __global const float* depth, __global const uint* rgba,
+                                       int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
-  vd_tsdf_integrate_brick_row(get_global_id(0), list, tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
+  vd_tsdf_integrate_brick_row(get_global_id(0), list, masks, tsdf, weight, color, vol, cam, world_to_cam, depth,
+                              rgba);
 }

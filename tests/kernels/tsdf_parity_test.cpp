@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 
 #include "core/device_ops.h"
@@ -118,14 +120,24 @@ TEST(TsdfParityTest, BrickIntegrationMatchesCpuAndDenseInsideTheBand) {
   const cpu::McMesh ma = cpu::MarchingCubes(tsdf.data(), weight.data(), color.data(), vol);
   const cpu::McMesh mb = cpu::MarchingCubes(dtsdf.data(), dweight.data(), dcolor.data(), vol);
   EXPECT_GT(ma.triangles.size(), 300u);
-  ASSERT_EQ(ma.triangles.size(), mb.triangles.size());
-  ASSERT_EQ(ma.positions_grid.size(), mb.positions_grid.size());
-  float worst = 0.f;
-  for (size_t i = 0; i < ma.positions_grid.size(); ++i)
-    worst = std::max({worst, std::fabs(ma.positions_grid[i].x - mb.positions_grid[i].x),
-                      std::fabs(ma.positions_grid[i].y - mb.positions_grid[i].y),
-                      std::fabs(ma.positions_grid[i].z - mb.positions_grid[i].z)});
-  EXPECT_LT(worst, 1e-3f);
+  // The same surface: every vertex of the brick mesh is a vertex of the dense mesh (to 1e-3
+  // voxels). Dense integration also carves free space beyond the band, which adds a few cells at
+  // depth discontinuities (the sphere's silhouette against the background): at most 1 % more.
+  std::vector<std::array<float, 3>> dense_vertices;
+  for (const vd_float4& p : mb.positions_grid) dense_vertices.push_back({p.x, p.y, p.z});
+  std::sort(dense_vertices.begin(), dense_vertices.end());
+  size_t missing = 0;
+  for (const vd_float4& p : ma.positions_grid) {
+    auto it = std::lower_bound(dense_vertices.begin(), dense_vertices.end(), std::array<float, 3>{p.x - 1e-3f, 0.f, 0.f});
+    bool found = false;
+    for (; it != dense_vertices.end() && (*it)[0] <= p.x + 1e-3f && !found; ++it)
+      found = std::fabs((*it)[1] - p.y) < 1e-3f && std::fabs((*it)[2] - p.z) < 1e-3f;
+    missing += !found;
+  }
+  EXPECT_EQ(missing, 0u) << "brick-mesh vertices not on the dense mesh";
+  EXPECT_LE(ma.triangles.size(), mb.triangles.size());
+  EXPECT_GE(double(ma.triangles.size()), 0.99 * double(mb.triangles.size()));
+  std::printf("brick mesh %zu triangles, dense %zu\n", ma.triangles.size() / 3, mb.triangles.size() / 3);
 }
 
 }  // namespace

@@ -100,21 +100,18 @@ VD_INLINE vd_float4 vd_depth_tile(int tile, VD_GLOBAL const float* depth, VdCame
   return VD_F4(lo, hi, 0.0f, 0.0f);
 }
 
-/* 1 when brick b may hold a grid point that integration updates within the truncation band:
- * some valid depth d under the brick's projected footprint (nearest-pixel rounding included)
- * with d - z in [-truncation, truncation] for z in the brick's camera depth range. Conservative:
- * a brick it passes may still hold none (it then costs time, not correctness). */
-VD_INLINE vd_uint vd_brick_in_band(int b, VD_GLOBAL const vd_float4* tiles, VdCamera cam, VdPose world_to_cam,
-                                   VdVolume vol) {
-  int nbx = vd_bricks_x(vol), nby = vd_bricks_y(vol);
-  int bx = b % nbx, by = (b / nbx) % nby, bz = b / (nbx * nby);
+/* 1 when the box of grid points [x0, x1] x [y0, y1] x [z0, z1] (inclusive) may hold a grid point
+ * that integration updates within the truncation band: some valid depth d under the box's
+ * projected footprint (nearest-pixel rounding included) with d - z in [-truncation, truncation]
+ * for z in the box's camera depth range. Conservative: a box it passes may still hold none (it
+ * then costs time, not correctness). */
+VD_INLINE vd_uint vd_box_in_band(int x0, int y0, int z0, int x1, int y1, int z1, VD_GLOBAL const vd_float4* tiles,
+                                 VdCamera cam, VdPose world_to_cam, VdVolume vol) {
   float zmin = 3.4e38f, zmax = -3.4e38f, umin = 3.4e38f, umax = -3.4e38f, vmin = 3.4e38f, vmax = -3.4e38f;
   int behind = 0;
   for (int c = 0; c < 8; ++c) {
-    int x = vd_min_i(bx * VD_BRICK + ((c & 1) ? VD_BRICK - 1 : 0), vol.dim_x - 1);
-    int y = vd_min_i(by * VD_BRICK + ((c & 2) ? VD_BRICK - 1 : 0), vol.dim_y - 1);
-    int z = vd_min_i(bz * VD_BRICK + ((c & 4) ? VD_BRICK - 1 : 0), vol.dim_z - 1);
-    vd_float4 p = vd_pose_apply(world_to_cam, vd_voxel_position(vol, x, y, z));
+    vd_float4 p = vd_pose_apply(world_to_cam, vd_voxel_position(vol, (c & 1) ? x1 : x0, (c & 2) ? y1 : y0,
+                                                                (c & 4) ? z1 : z0));
     zmin = fmin(zmin, p.z);
     zmax = fmax(zmax, p.z);
     if (p.z <= 1e-4f) {
@@ -146,29 +143,71 @@ VD_INLINE vd_uint vd_brick_in_band(int b, VD_GLOBAL const vd_float4* tiles, VdCa
   return 0u;
 }
 
+/* 1 when brick b may hold a grid point in the band (vd_box_in_band over the whole brick). */
+VD_INLINE vd_uint vd_brick_in_band(int b, VD_GLOBAL const vd_float4* tiles, VdCamera cam, VdPose world_to_cam,
+                                   VdVolume vol) {
+  int nbx = vd_bricks_x(vol), nby = vd_bricks_y(vol);
+  int bx = b % nbx, by = (b / nbx) % nby, bz = b / (nbx * nby);
+  int x0 = bx * VD_BRICK, y0 = by * VD_BRICK, z0 = bz * VD_BRICK;
+  return vd_box_in_band(x0, y0, z0, vd_min_i(x0 + VD_BRICK - 1, vol.dim_x - 1), vd_min_i(y0 + VD_BRICK - 1, vol.dim_y - 1),
+                        vd_min_i(z0 + VD_BRICK - 1, vol.dim_z - 1), tiles, cam, world_to_cam, vol);
+}
+
+/* The octants of brick b (its (VD_BRICK/2)^3 corners; bit ox + 2 oy + 4 oz) that may hold a grid
+ * point in the band; 0 when the brick holds none. Integration skips the other octants: the band
+ * crosses a brick as a slab, so a passing brick typically has octants wholly in front of or
+ * behind it. */
+VD_INLINE vd_uint vd_brick_octants(int b, VD_GLOBAL const vd_float4* tiles, VdCamera cam, VdPose world_to_cam,
+                                   VdVolume vol) {
+  if (!vd_brick_in_band(b, tiles, cam, world_to_cam, vol)) return 0u;
+  int nbx = vd_bricks_x(vol), nby = vd_bricks_y(vol);
+  int bx = b % nbx, by = (b / nbx) % nby, bz = b / (nbx * nby);
+  const int h = VD_BRICK / 2;
+  vd_uint mask = 0u;
+  for (int o = 0; o < 8; ++o) {
+    int x0 = bx * VD_BRICK + (o & 1) * h, y0 = by * VD_BRICK + ((o >> 1) & 1) * h, z0 = bz * VD_BRICK + (o >> 2) * h;
+    if (x0 >= vol.dim_x || y0 >= vol.dim_y || z0 >= vol.dim_z) continue;
+    if (vd_box_in_band(x0, y0, z0, vd_min_i(x0 + h - 1, vol.dim_x - 1), vd_min_i(y0 + h - 1, vol.dim_y - 1),
+                       vd_min_i(z0 + h - 1, vol.dim_z - 1), tiles, cam, world_to_cam, vol))
+      mask |= 1u << o;
+  }
+  return mask;
+}
+
 /* Work items per brick of the brick integration: one per z-slice of VD_BRICK^2 grid points, so
  * the per-item set-up is shared by 64 points and the inner loop walks contiguous x. */
 #define VD_BRICK_ITEMS VD_BRICK
 
-/* Work item `item` of the brick integration: slice (item % VD_BRICK) of brick list[item / VD_BRICK]. */
-VD_INLINE void vd_tsdf_integrate_brick_row(int item, VD_GLOBAL const vd_uint* list, VD_GLOBAL float* tsdf,
-                                           VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color, VdVolume vol,
-                                           VdCamera cam, VdPose world_to_cam, VD_GLOBAL const float* depth,
-                                           VD_GLOBAL const vd_uint* rgba) {
+/* Work item `item` of the brick integration: slice (item % VD_BRICK) of brick list[item / VD_BRICK],
+ * only in the octants masks[brick] names (vd_brick_octants). */
+VD_INLINE void vd_tsdf_integrate_brick_row(int item, VD_GLOBAL const vd_uint* list, VD_GLOBAL const vd_uint* masks,
+                                           VD_GLOBAL float* tsdf, VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color,
+                                           VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                                           VD_GLOBAL const float* depth, VD_GLOBAL const vd_uint* rgba) {
   int b = (int)list[item / VD_BRICK_ITEMS], r = item % VD_BRICK_ITEMS;
   int nbx = vd_bricks_x(vol), nby = vd_bricks_y(vol);
   int bx = b % nbx, by = (b / nbx) % nby, bz = b / (nbx * nby);
   int z = bz * VD_BRICK + r;
   if (z >= vol.dim_z) return;
-  int x0 = bx * VD_BRICK, x1 = vd_min_i(x0 + VD_BRICK, vol.dim_x);
-  int y0 = by * VD_BRICK, y1 = vd_min_i(y0 + VD_BRICK, vol.dim_y);
+  const int h = VD_BRICK / 2;
+  /* The octant bits of this slice's half in z: bit ox + 2 oy. */
+  vd_uint mask = (masks[b] >> (r >= h ? 4 : 0)) & 15u;
+  if (mask == 0u) return;
   vd_float4 step = vd_pose_rotate(world_to_cam, VD_F4(vol.voxel_size, 0.0f, 0.0f, 0.0f));
-  for (int y = y0; y < y1; ++y) {
-    vd_float4 p0 = vd_pose_apply(world_to_cam, vd_voxel_position(vol, x0, y, z));
-    int row = vol.dim_x * (y + vol.dim_y * z);
-    for (int x = x0; x < x1; ++x) {
-      vd_float4 p = p0 + step * (float)(x - x0);
-      vd_tsdf_integrate_point(tsdf, weight, color, row + x, p, vol, cam, depth, rgba);
+  for (int oy = 0; oy < 2; ++oy) {
+    if ((mask & (3u << (2 * oy))) == 0u) continue;
+    int y0 = by * VD_BRICK + oy * h, y1 = vd_min_i(y0 + h, vol.dim_y);
+    for (int ox = 0; ox < 2; ++ox) {
+      if ((mask & (1u << (2 * oy + ox))) == 0u) continue;
+      int x0 = bx * VD_BRICK + ox * h, x1 = vd_min_i(x0 + h, vol.dim_x);
+      for (int y = y0; y < y1; ++y) {
+        vd_float4 p0 = vd_pose_apply(world_to_cam, vd_voxel_position(vol, x0, y, z));
+        int row = vol.dim_x * (y + vol.dim_y * z);
+        for (int x = x0; x < x1; ++x) {
+          vd_float4 p = p0 + step * (float)(x - x0);
+          vd_tsdf_integrate_point(tsdf, weight, color, row + x, p, vol, cam, depth, rgba);
+        }
+      }
     }
   }
 }

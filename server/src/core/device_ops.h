@@ -143,6 +143,8 @@ class DeviceOps {
   // Brick integration scratch: per-brick flags of the current frame, their scan, the list.
   ocl::Buffer<vd_float4> depth_tiles_;
   ocl::Buffer<uint32_t> brick_flags_;
+  // Per brick, the octants the band may touch (vd_brick_octants); integration skips the others.
+  ocl::Buffer<uint32_t> brick_masks_;
   ocl::Buffer<uint32_t> brick_offsets_;
   ocl::Buffer<uint32_t> brick_list_;
   size_t brick_count_ = 0;

@@ -245,14 +245,18 @@ void IntegrateTsdfBricks(float* tsdf, float* weight, uint32_t* color, VdVolume v
   flags->assign(size_t(bricks), 0u);
   std::vector<vd_float4> tiles(size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam));
   for (size_t t = 0; t < tiles.size(); ++t) tiles[t] = vd_depth_tile(int(t), depth, cam);
-  for (int b = 0; b < bricks; ++b) (*flags)[b] = vd_brick_in_band(b, tiles.data(), cam, world_to_cam, vol);
+  std::vector<uint32_t> masks(size_t(bricks), 0u);
+  for (int b = 0; b < bricks; ++b) {
+    masks[b] = vd_brick_octants(b, tiles.data(), cam, world_to_cam, vol);
+    (*flags)[b] = masks[b] != 0u ? 1u : 0u;
+  }
   std::vector<uint32_t> list;
   for (int b = 0; b < bricks; ++b)
     if ((*flags)[b]) list.push_back(uint32_t(b));
   const int items = int(list.size()) * VD_BRICK_ITEMS;
 #pragma omp parallel for schedule(static)
   for (int i = 0; i < items; ++i)
-    vd_tsdf_integrate_brick_row(i, list.data(), tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
+    vd_tsdf_integrate_brick_row(i, list.data(), masks.data(), tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd::cpu
