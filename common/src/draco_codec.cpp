@@ -2,7 +2,10 @@
 // kept exactly; normals optional. A mesh with zero triangles is refused with a clear error by
 // both EncodeMeshDraco and DecodeMeshDraco (Draco itself crashes on an empty mesh); the message
 // layer (MeshToMessage) sends an empty mesh as zero bytes instead.
+#include <algorithm>
 #include <array>
+#include <cmath>
+#include <cstdio>
 #include <exception>
 #include <memory>
 #include <string>
@@ -73,6 +76,84 @@ Status CopyAttribute(const draco::PointAttribute* attribute, const char* name, s
   return Status::Ok();
 }
 
+// Draco trusts the element counts at the start of a mesh's connectivity and allocates for them
+// before reading any data: a 300-byte stream declaring hundreds of millions of faces made it
+// allocate over 3 GB. CheckDeclaredCounts reads those counts first, as Draco 1.5 lays them out in
+// mesh bitstream 2.2 (the version it writes), and refuses counts no stream of that size holds.
+// The most compressible mesh measured, a flat regular one-colour grid, took 1.3 bits per face
+// (6.2 faces per byte); 64 elements per byte leaves a wide margin. The absolute cap is about what
+// a kMaxPayloadBytes message of such a grid could carry.
+constexpr uint64_t kMaxDracoElementsPerByte = 64;
+constexpr uint64_t kMaxDracoElements = uint64_t{1} << 24;
+// "DRACO", version major and minor, encoder type, method, flags (uint16 little-endian).
+constexpr size_t kDracoHeaderBytes = 11;
+
+class HeaderReader {
+ public:
+  HeaderReader(const uint8_t* data, size_t size, size_t pos) : data_(data), size_(size), pos_(pos) {}
+  bool Byte(uint8_t* out) {
+    if (pos_ >= size_) return false;
+    *out = data_[pos_++];
+    return true;
+  }
+  // Draco's varint: 7 bits per byte, least significant group first, at most 5 bytes, the value
+  // taken modulo 2^32 as Draco's decoder does.
+  bool Varint(uint32_t* out) {
+    uint64_t value = 0;
+    for (int i = 0; i < 5; ++i) {
+      uint8_t byte;
+      if (!Byte(&byte)) return false;
+      value |= static_cast<uint64_t>(byte & 0x7F) << (7 * i);
+      if (!(byte & 0x80)) {
+        *out = static_cast<uint32_t>(value);
+        return true;
+      }
+    }
+    return false;
+  }
+
+ private:
+  const uint8_t* data_;
+  size_t size_;
+  size_t pos_;
+};
+
+Status CheckDeclaredCounts(const uint8_t* data, size_t size) {
+  if (size < kDracoHeaderBytes) return DataLoss("Draco header: " + std::to_string(size) + " bytes is too short");
+  const int major = data[5], minor = data[6], method = data[8];
+  const int flags = data[9] | data[10] << 8;
+  if (major != draco::kDracoMeshBitstreamVersionMajor || minor != draco::kDracoMeshBitstreamVersionMinor)
+    return DataLoss("Draco mesh bitstream version " + std::to_string(major) + "." + std::to_string(minor) +
+                    " is not the one accepted (" + std::to_string(draco::kDracoMeshBitstreamVersionMajor) + "." +
+                    std::to_string(draco::kDracoMeshBitstreamVersionMinor) + ")");
+  if (flags & METADATA_FLAG_MASK) return DataLoss("Draco mesh carries metadata, which is not accepted");
+  HeaderReader reader(data, size, kDracoHeaderBytes);
+  uint32_t faces = 0;
+  uint64_t vertices = 0;
+  bool complete = false;
+  if (method == draco::MESH_SEQUENTIAL_ENCODING) {
+    uint32_t points = 0;
+    complete = reader.Varint(&faces) && reader.Varint(&points);
+    vertices = points;
+  } else if (method == draco::MESH_EDGEBREAKER_ENCODING) {
+    uint8_t traversal = 0, attribute_data = 0;
+    uint32_t encoded_vertices = 0, symbols = 0, split_symbols = 0;
+    complete = reader.Byte(&traversal) && reader.Varint(&encoded_vertices) && reader.Varint(&faces) &&
+               reader.Byte(&attribute_data) && reader.Varint(&symbols) && reader.Varint(&split_symbols);
+    // Each split symbol adds a vertex while decoding.
+    vertices = uint64_t{encoded_vertices} + split_symbols;
+  } else {
+    return DataLoss("Draco mesh encoding method " + std::to_string(method) + " is unknown");
+  }
+  if (!complete) return DataLoss("Draco connectivity header ends early");
+  const uint64_t limit = std::min<uint64_t>(kMaxDracoElements, kMaxDracoElementsPerByte * size);
+  if (faces > limit || vertices > limit)
+    return DataLoss("Draco stream of " + std::to_string(size) + " bytes declares " + std::to_string(faces) +
+                    " faces and " + std::to_string(vertices) + " vertices, above the " + std::to_string(limit) +
+                    " it can hold");
+  return Status::Ok();
+}
+
 StatusOr<TriangleMesh> DecodeUnchecked(const uint8_t* data, size_t size) {
   if (data == nullptr || size == 0) return DataLoss("Draco buffer is empty (an empty mesh is not Draco-encoded)");
   draco::DecoderBuffer buffer;
@@ -80,6 +161,7 @@ StatusOr<TriangleMesh> DecodeUnchecked(const uint8_t* data, size_t size) {
   const auto type = draco::Decoder::GetEncodedGeometryType(&buffer);
   if (!type.ok()) return DataLoss(std::string("Draco header: ") + type.status().error_msg());
   if (type.value() != draco::TRIANGULAR_MESH) return DataLoss("Draco buffer holds a point cloud, not a triangle mesh");
+  VD_RETURN_IF_ERROR(CheckDeclaredCounts(data, size));
   draco::Decoder decoder;
   auto decoded = decoder.DecodeMeshFromBuffer(&buffer);
   if (!decoded.ok()) return DataLoss(std::string("Draco decoding failed: ") + decoded.status().error_msg());
@@ -131,6 +213,17 @@ StatusOr<std::vector<uint8_t>> EncodeMeshDraco(const TriangleMesh& mesh, const D
   VD_RETURN_IF_ERROR(options.Validate());
   VD_RETURN_IF_ERROR(mesh.Validate());
   if (mesh.empty()) return InvalidArgument("cannot Draco-encode a mesh with no triangles");
+  // Draco quantises positions relative to the bounding box, in float: an extent that overflows
+  // (coordinates of both signs near FLT_MAX) makes it cast infinity to an integer and crash.
+  float min_xyz[3], max_xyz[3];
+  mesh.Bounds(min_xyz, max_xyz);
+  for (int a = 0; a < 3; ++a)
+    if (!std::isfinite(max_xyz[a] - min_xyz[a])) {
+      char text[160];
+      std::snprintf(text, sizeof(text), "cannot Draco-encode a mesh whose extent along axis %d (%g .. %g) overflows float",
+                    a, min_xyz[a], max_xyz[a]);
+      return InvalidArgument(text);
+    }
   const size_t num_points = mesh.num_vertices();
   if (num_points > static_cast<size_t>(INT32_MAX)) return InvalidArgument("mesh has too many vertices for Draco");
   try {
@@ -148,14 +241,18 @@ StatusOr<std::vector<uint8_t>> EncodeMeshDraco(const TriangleMesh& mesh, const D
       dm.SetFace(draco::FaceIndex(static_cast<uint32_t>(f)), face);
     }
     size_t encoded_points = 0, encoded_faces = 0;
-    VD_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, Encode(dm, options, options.speed == 10, &encoded_points, &encoded_faces));
-    if (encoded_points == num_points && encoded_faces == mesh.num_triangles()) return bytes;
+    auto first = Encode(dm, options, options.speed == 10, &encoded_points, &encoded_faces);
+    if (first.ok() && encoded_points == num_points && encoded_faces == mesh.num_triangles()) return first;
     // Edgebreaker drops unreferenced vertices and degenerate triangles and splits non-manifold
-    // vertices. The receiver checks counts against the message, so keep the mesh as it is with
-    // sequential connectivity coding (larger, but exact in counts and order).
-    VD_LOG_DEBUG << "Draco edgebreaker changed the mesh (" << num_points << " -> " << encoded_points << " vertices, "
-                 << mesh.num_triangles() << " -> " << encoded_faces << " triangles); using sequential coding";
-    VD_ASSIGN_OR_RETURN(bytes, Encode(dm, options, true, &encoded_points, &encoded_faces));
+    // vertices, and fails outright when every triangle is degenerate. The receiver checks counts
+    // against the message, so keep the mesh as it is with sequential connectivity coding (larger,
+    // but exact in counts and order).
+    if (first.ok())
+      VD_LOG_DEBUG << "Draco edgebreaker changed the mesh (" << num_points << " -> " << encoded_points << " vertices, "
+                   << mesh.num_triangles() << " -> " << encoded_faces << " triangles); using sequential coding";
+    else
+      VD_LOG_DEBUG << first.status().message() << "; using sequential coding";
+    VD_ASSIGN_OR_RETURN(std::vector<uint8_t> bytes, Encode(dm, options, true, &encoded_points, &encoded_faces));
     if (encoded_points != num_points || encoded_faces != mesh.num_triangles())
       return Internal("Draco sequential coding changed the mesh (" + std::to_string(num_points) + " -> " +
                       std::to_string(encoded_points) + " vertices)");

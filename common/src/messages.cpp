@@ -325,6 +325,11 @@ StatusOr<TriangleMesh> MessageToMesh(const vdeform::mesh_t& msg) {
                              std::to_string(msg.num_triangles) + " triangles");
     return TriangleMesh();
   }
+  // MeshToMessage sends a mesh without triangles as no data, and Draco cannot hold one; a PLY
+  // payload could, so refuse it here for both encodings alike.
+  if (msg.num_triangles == 0)
+    return InvalidArgument("mesh_t carries " + std::to_string(msg.data_size) +
+                           " bytes but declares no triangles (an empty mesh is sent with no data)");
   auto mesh = msg.encoding == vdeform::mesh_t::ENCODING_DRACO ? DecodeMeshDraco(msg.data.data(), msg.data.size())
                                                               : DecodePly(msg.data.data(), msg.data.size());
   if (!mesh.ok()) return mesh.status().WithContext("mesh_t");
