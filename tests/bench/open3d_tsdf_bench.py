@@ -191,6 +191,25 @@ def run_kernel_bench(args, voxel):
     return r
 
 
+def run_fusion_bench(args, voxel):
+    """vd_fusion_bench: the same frames with the ground-truth poses, integration timed per frame,
+    one extraction: the job Open3D's rows do."""
+    exe = os.path.join(args.vd_build, "tests/bench/vd_fusion_bench")
+    out = subprocess.run([exe, "--data", args.data, "--voxel-size", repr(voxel), "--frames", str(args.frames)],
+                         capture_output=True, text=True)
+    if out.returncode != 0:
+        raise SystemExit("vd_fusion_bench failed (rc %d): %s" % (out.returncode, out.stderr[-2000:]))
+    r = {}
+    for key in ("integrate_mean_ms", "integrate_median_ms", "extract_ms", "triangles", "bricks_mean"):
+        m = re.search(r"^%s ([\d.]+)$" % key, out.stdout, re.M)
+        if not m:
+            raise SystemExit("vd_fusion_bench: no %s in:\n%s" % (key, out.stdout))
+        r[key] = float(m.group(1))
+    m = re.search(r"grid (\d+)x(\d+)x(\d+)", out.stdout)
+    r["grid"] = [int(g) for g in m.groups()] if m else []
+    return r
+
+
 def run_server(args, voxel):
     exe = os.path.join(args.vd_build, "server/vdeform-server")
     with tempfile.TemporaryDirectory() as tmp:
@@ -256,6 +275,7 @@ def main():
         row["vbg"] = [run_child(args, "vbg", v, r) for r in resolutions]
         if args.vd_build:
             row["kernel"] = run_kernel_bench(args, v)
+            row["fusion"] = run_fusion_bench(args, v)
             row["server"] = run_server(args, v)
         results.append(row)
         print_row(row)
@@ -301,6 +321,11 @@ def print_row(row):
                  k["marching_cubes_ocl_ms"], k["triangles"], "-"))
     print(fmt % ("ours vd_kernel_bench CPU ref (1 frame)", k["integrate_cpu_ms"], k["integrate_cpu_ms"],
                  k["marching_cubes_cpu_ms"], k["triangles"], "-"))
+    fu = row["fusion"]
+    print(fmt % ("ours vd_fusion_bench (GT poses)", fu["integrate_mean_ms"], fu["integrate_median_ms"],
+                 fu["extract_ms"], "%d" % fu["triangles"], "-"))
+    print("  (fusion bench grid %s, %d bricks integrated per frame on average)" % (
+        "x".join(str(g) for g in fu["grid"]), fu["bricks_mean"]))
     print(fmt % ("ours vdeform-server (tracked)", srv_int, srv_int_med, srv_mc, "-",
                  "%.0f" % (sv["peak_resident_bytes"] / 1e6)))
     print("  (our dense grid %dx%dx%d = %.1f M voxels x 12 B = %.0f MB; server OpenCL peak %.0f MB; %d frames, "
@@ -310,7 +335,8 @@ def print_row(row):
     print("ratios ours / Open3D (< 1: ours faster):")
     for oname, r in o3d_rows:
         oi, oe = mean(r["integrate_ms"]), r["extract_ms"]
-        for lbl, i, m in (("server", srv_int, srv_mc), ("kernel OpenCL", k["integrate_ocl_ms"], k["marching_cubes_ocl_ms"])):
+        for lbl, i, m in (("fusion bench", fu["integrate_mean_ms"], fu["extract_ms"]), ("server", srv_int, srv_mc),
+                          ("kernel OpenCL", k["integrate_ocl_ms"], k["marching_cubes_ocl_ms"])):
             print("  ours (%-13s) / %-30s integrate per frame %6.2fx   %d x integrate + 1 extraction %6.2fx" % (
                 lbl, oname, i / oi, n, (n * i + m) / (n * oi + oe)))
 

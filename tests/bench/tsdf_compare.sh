@@ -15,13 +15,13 @@ if ! /usr/bin/python3 -c 'import open3d' 2>/dev/null; then
   echo "tsdf_compare: /usr/bin/python3 cannot import open3d (apt-get install python3-open3d)" >&2
   exit 1
 fi
-for exe in "$build/tests/bench/vd_kernel_bench" "$build/server/vdeform-server"; do
+for exe in "$build/tests/bench/vd_kernel_bench" "$build/tests/bench/vd_fusion_bench" "$build/server/vdeform-server"; do
   [ -x "$exe" ] || { echo "tsdf_compare: $exe is missing (build it first)" >&2; exit 1; }
 done
 # Snapshot our binaries: a rebuild of BUILD_DIR during the run must not change what is measured.
 snap="$out_dir/vd-build"
 mkdir -p "$snap/tests/bench" "$snap/server"
-cp "$build/tests/bench/vd_kernel_bench" "$snap/tests/bench/"
+cp "$build/tests/bench/vd_kernel_bench" "$build/tests/bench/vd_fusion_bench" "$snap/tests/bench/"
 cp "$build/server/vdeform-server" "$snap/server/"
 echo "our binaries: copied from $build ($(date -u -r "$build/server/vdeform-server" '+server built %H:%M UTC'))"
 # Both sides get the machine's two cores: Open3D through OpenMP, ours through PoCL's pthreads.
