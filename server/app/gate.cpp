@@ -4,6 +4,12 @@
 #include <cstdlib>
 
 namespace vd {
+namespace {
+
+// Largest gap of sequence numbers counted as lost frames at once.
+constexpr int64_t kMaxCountedGap = int64_t(1) << 20;
+
+}  // namespace
 
 std::string RejectReason(const Status& s) {
   const std::string& m = s.message();
@@ -34,6 +40,12 @@ FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
     d.status = PermissionDenied("source '" + msg->source_id + "' is not accepted");
     return d;
   }
+  if (msg->seq < 0 || msg->utime < 0) {
+    ++counters_.rejected;
+    d.status = InvalidArgument("frame has a negative sequence number or capture time");
+    d.reason = "invalid_frame";
+    return d;
+  }
   auto it = sources_.find(msg->source_id);
   bool restart = false;
   if (it != sources_.end() && msg->seq <= it->second.seq) {
@@ -58,7 +70,10 @@ FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
   }
   // Counted only for valid frames, so garbage cannot move a source's sequence.
   if (restart) ++counters_.source_restarts;
-  else if (it != sources_.end() && msg->seq > it->second.seq + 1) counters_.lost += msg->seq - it->second.seq - 1;
+  else if (it != sources_.end() && msg->seq - it->second.seq > 1)
+    // Both are >= 0, so the difference cannot overflow; a jump beyond kMaxCountedGap is counted
+    // as that many (the counter must not overflow on a hostile sequence number).
+    counters_.lost += std::min<int64_t>(msg->seq - it->second.seq - 1, kMaxCountedGap);
   sources_[msg->source_id] = SourceState{msg->seq, msg->utime};
   d.verdict = FrameVerdict::kAccept;
   d.frame = std::move(frame).value();
@@ -85,8 +100,11 @@ ControlDecision FrameGate::OnControl(const void* data, size_t size, int64_t now_
   // need no key. Commands that change or write state need the HMAC when a key is configured.
   if (authenticated_control() && cmd != vdeform::control_t::COMMAND_REQUEST_MESH) {
     Status s = VerifyControl(options_.control_key, d.msg);
-    if (s.ok() && std::llabs(d.msg.utime - now_us) > options_.control_max_skew_us)
-      s = PermissionDenied("control message time is " + std::to_string((d.msg.utime - now_us) / 1000) +
+    // |utime - now| without overflow for any int64 values.
+    const uint64_t skew = d.msg.utime >= now_us ? uint64_t(d.msg.utime) - uint64_t(now_us)
+                                                 : uint64_t(now_us) - uint64_t(d.msg.utime);
+    if (s.ok() && skew > uint64_t(options_.control_max_skew_us))
+      s = PermissionDenied("control message time is " + std::to_string(skew / 1000) +
                            " ms off the server's clock");
     if (s.ok() && d.msg.utime <= last_control_utime_) s = PermissionDenied("control message replayed");
     if (!s.ok()) {

@@ -67,6 +67,31 @@ TEST_F(GateTest, SequenceNumbersCountDuplicatesReordersLossesAndRestarts) {
   EXPECT_EQ(c.foreign, 0);
 }
 
+// Found by fuzz_server_gate: extreme sequence numbers and times must not overflow the counters.
+TEST_F(GateTest, ExtremeSequenceNumbersAndTimesAreHandled) {
+  FrameGate g(GateOptions{});
+  EXPECT_EQ(Send(&g, "cam", 5, 1000), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "cam", INT64_MIN, 2000), FrameVerdict::kRejected);
+  EXPECT_EQ(Send(&g, "cam", 6, -1), FrameVerdict::kRejected);
+  EXPECT_EQ(Send(&g, "cam", INT64_MAX, 3000), FrameVerdict::kAccept);
+  EXPECT_EQ(g.counters().lost, int64_t(1) << 20) << "a jump is counted as at most 2^20 lost frames";
+  EXPECT_EQ(Send(&g, "cam", INT64_MAX, 3000), FrameVerdict::kStale);
+  GateOptions o;
+  o.control_key = "a-sixteen-byte-key!!";
+  FrameGate c(o);
+  for (int64_t t : {INT64_MIN, INT64_MAX, int64_t(0)}) {
+    vdeform::control_t m{};
+    m.utime = t;
+    m.command = vdeform::control_t::COMMAND_RESET;
+    m.sender = "x";
+    m.auth_size = 0;
+    SignControl(o.control_key, &m);
+    std::vector<uint8_t> b(m.getEncodedSize());
+    m.encode(b.data(), 0, int(b.size()));
+    EXPECT_FALSE(c.OnControl(b.data(), b.size(), INT64_MAX / 2).status.ok()) << t;
+  }
+}
+
 TEST_F(GateTest, OnlyAcceptedSourcesPass) {
   GateOptions o;
   o.accept_sources = {"left", "right"};

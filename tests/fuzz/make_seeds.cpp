@@ -13,6 +13,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "fuzz_util.h"
+#include "vd/common/auth.h"
 #include "vd/common/codecs.h"
 #include "vd/common/messages.h"
 
@@ -261,6 +262,64 @@ void StatusSeeds(SeedWriter* w) {
   w->WriteLcm("lcm_status", "seed-idle", idle);
 }
 
+// fuzz_server_gate: sequences of [kind][u16 length][message] records (kind even = frame, odd =
+// control), with the source ids and the HMAC key that target configures: in-order frames, a
+// duplicate, a gap, a restart, a foreign source, a signed RESET and an unsigned one.
+void GateSeeds(SeedWriter* w) {
+  const std::string key = "fuzz-control-key-0123456789";
+  const int64_t now = 1764633600000000;
+  auto record = [](std::vector<uint8_t>* out, uint8_t kind, const std::vector<uint8_t>& msg) {
+    out->push_back(kind);
+    out->push_back(static_cast<uint8_t>(msg.size() & 0xff));
+    out->push_back(static_cast<uint8_t>(msg.size() >> 8));
+    out->insert(out->end(), msg.begin(), msg.end());
+  };
+  auto encode = [](const auto& msg) {
+    std::vector<uint8_t> bytes(static_cast<size_t>(msg.getEncodedSize()));
+    msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
+    return bytes;
+  };
+  auto frame = [&](const std::string& source, int64_t seq, int64_t utime) {
+    RgbdFrame f;
+    f.utime = utime;
+    f.seq = seq;
+    f.source_id = source;
+    f.intrinsics = Intrinsics{20.f, 20.f, 7.5f, 5.5f, 16, 12};
+    f.depth_scale = 1000.f;
+    f.depth = Depth(16, 12, 6, 50 + uint32_t(seq));
+    FrameEncodeOptions options;
+    options.color = ColorEncoding::kNone;
+    return encode(SeedWriter::Check(FrameToMessage(f, options), "gate frame"));
+  };
+  auto control = [&](int8_t command, int64_t utime, bool sign) {
+    vdeform::control_t m{};
+    m.utime = utime;
+    m.command = command;
+    m.path = command == vdeform::control_t::COMMAND_SAVE_SNAPSHOT ? "snap" : "";
+    m.sender = "seed";
+    m.auth_size = 0;
+    if (sign) SignControl(key, &m);
+    return encode(m);
+  };
+  std::vector<uint8_t> seq;
+  record(&seq, 0, frame("capture-a", 0, now));
+  record(&seq, 0, frame("capture-a", 1, now + 1));
+  record(&seq, 2, frame("capture-a", 1, now + 1));
+  record(&seq, 0, frame("capture-a", 5, now + 5));
+  record(&seq, 0, frame("capture-b", 0, now + 6));
+  record(&seq, 0, frame("intruder", 0, now + 7));
+  record(&seq, 0, frame("capture-a", 0, now + 9));
+  w->Write("server_gate", "seed-frames", seq);
+  std::vector<uint8_t> ctl;
+  record(&ctl, 1, control(vdeform::control_t::COMMAND_RESET, now, true));
+  record(&ctl, 1, control(vdeform::control_t::COMMAND_RESET, now, true));
+  record(&ctl, 3, control(vdeform::control_t::COMMAND_SAVE_SNAPSHOT, now + 10, false));
+  record(&ctl, 1, control(vdeform::control_t::COMMAND_SAVE_SNAPSHOT, now + 20, true));
+  record(&ctl, 1, control(vdeform::control_t::COMMAND_REQUEST_MESH, now + 30, false));
+  record(&ctl, 0, frame("capture-a", 0, now));
+  w->Write("server_gate", "seed-control", ctl);
+}
+
 }  // namespace
 }  // namespace vd::fuzz
 
@@ -278,6 +337,7 @@ int main(int argc, char** argv) {
   vd::fuzz::MeshMessageSeeds(&writer);
   vd::fuzz::ControlSeeds(&writer);
   vd::fuzz::StatusSeeds(&writer);
+  vd::fuzz::GateSeeds(&writer);
   std::printf("vd_fuzz_seeds: %d seeds in %s\n", writer.count(), argv[1]);
   return 0;
 }

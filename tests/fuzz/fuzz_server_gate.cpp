@@ -1,0 +1,87 @@
+// The server's message handlers (server/app/gate.cpp: what Node::OnFrame and Node::OnControl run
+// before anything reaches the engine) over a sequence of messages. The input is a series of
+// records [kind byte][u16 length][bytes]: kind even = a VDEFORM_FRAMES message, odd = a
+// VDEFORM_CONTROL message. The gate has a control key and a source filter configured.
+// Invariants: every frame is counted exactly once (accepted, rejected, stale or foreign); an
+// accepted frame is valid, from an accepted source, and its seq is newer than the source's last
+// accepted one unless the gate counted a restart; a state-changing control command is accepted
+// only with a valid HMAC and a utime newer than any accepted before.
+#include <map>
+
+#include "fuzz_util.h"
+#include "gate.h"
+
+namespace {
+
+constexpr const char* kKey = "fuzz-control-key-0123456789";
+constexpr int64_t kNowUs = 1764633600000000;
+
+}  // namespace
+
+extern "C" int LLVMFuzzerInitialize(int*, char***) {
+  vd::fuzz::Quiet();
+  return 0;
+}
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  vd::GateOptions options;
+  options.control_key = kKey;
+  options.accept_sources = {"capture-a", "capture-b", ""};
+  vd::FrameGate gate(options);
+  int64_t frames = 0, accepted = 0, stale = 0, foreign = 0, rejected = 0;
+  std::map<std::string, int64_t> last_seq;
+  int64_t last_control_utime = 0;
+  size_t pos = 0;
+  while (pos + 3 <= size) {
+    const uint8_t kind = data[pos];
+    const size_t len = std::min<size_t>(size_t(data[pos + 1]) | size_t(data[pos + 2]) << 8, size - pos - 3);
+    const uint8_t* msg = data + pos + 3;
+    pos += 3 + len;
+    if (kind % 2 == 0) {
+      ++frames;
+      const int64_t restarts = gate.counters().source_restarts;
+      vd::FrameDecision d = gate.OnFrame(msg, len);
+      switch (d.verdict) {
+        case vd::FrameVerdict::kAccept: {
+          ++accepted;
+          VD_FUZZ_CHECK(d.frame.has_value() && d.frame->Validate().ok());
+          const std::string& id = d.frame->source_id;
+          VD_FUZZ_CHECK(id == "capture-a" || id == "capture-b" || id.empty());
+          auto it = last_seq.find(id);
+          if (it != last_seq.end() && d.frame->seq <= it->second)
+            VD_FUZZ_CHECK(gate.counters().source_restarts == restarts + 1);
+          last_seq[id] = d.frame->seq;
+          break;
+        }
+        case vd::FrameVerdict::kRejected:
+          ++rejected;
+          VD_FUZZ_CHECK(!d.frame && !d.status.ok() && !d.reason.empty());
+          break;
+        case vd::FrameVerdict::kStale:
+          ++stale;
+          VD_FUZZ_CHECK(!d.frame);
+          break;
+        case vd::FrameVerdict::kForeign:
+          ++foreign;
+          VD_FUZZ_CHECK(!d.frame);
+          break;
+      }
+    } else {
+      vd::ControlDecision d = gate.OnControl(msg, len, kNowUs);
+      if (!d.status.ok()) continue;
+      const int8_t c = d.msg.command;
+      VD_FUZZ_CHECK(c == vdeform::control_t::COMMAND_RESET || c == vdeform::control_t::COMMAND_SAVE_SNAPSHOT ||
+                    c == vdeform::control_t::COMMAND_REQUEST_MESH);
+      if (c != vdeform::control_t::COMMAND_REQUEST_MESH) {
+        VD_FUZZ_CHECK(vd::VerifyControl(kKey, d.msg).ok());
+        VD_FUZZ_CHECK(d.msg.utime > last_control_utime);
+        last_control_utime = d.msg.utime;
+      }
+    }
+  }
+  const vd::GateCounters& c = gate.counters();
+  VD_FUZZ_CHECK(c.received == frames);
+  VD_FUZZ_CHECK(c.rejected == rejected && c.foreign == foreign && c.duplicates + c.reordered == stale);
+  VD_FUZZ_CHECK(accepted + rejected + stale + foreign == frames);
+  return 0;
+}
