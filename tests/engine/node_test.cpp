@@ -173,5 +173,51 @@ TEST_F(NodeTest, SnapshotStaysInsideItsDirectoryAndMeshRequestRepublishes) {
   EXPECT_EQ(int(inbox_.meshes.back().kind), int(vdeform::mesh_t::KIND_CANONICAL));
 }
 
+// A frame of another scene: reported in the status as TRACKING_LOST, not fused (the model's frame
+// count does not move), tracking resumes on the scene; RESET then drops the model.
+TEST_F(NodeTest, TrackingFailureIsReportedAndResetStartsANewModel) {
+  SyntheticOptions so;
+  so.noise = false;
+  auto tube = MakeSyntheticScene("tube", so);
+  auto cloth = MakeSyntheticScene("cloth", so);
+  ASSERT_TRUE(tube.ok() && cloth.ok());
+  auto send = [&](RgbdFrame f, int64_t seq) {
+    f.seq = seq;
+    f.source_id = "test";
+    auto m = FrameToMessage(f, FrameEncodeOptions());
+    ASSERT_TRUE(m.ok());
+    lcm_.publish(kFrameChannel, &*m);
+    Pump();
+    ASSERT_TRUE(node_->RunOnce());
+  };
+  for (int k = 0; k < 3; ++k) send((*tube)->Render(k), k);
+  EXPECT_EQ(Status().model_frames, 3);
+  send((*cloth)->Render(30), 3);
+  auto st = Status();
+  EXPECT_EQ(int(st.state), int(vdeform::server_status_t::STATE_TRACKING_LOST));
+  EXPECT_FALSE(st.message.empty());
+  EXPECT_EQ(st.model_frames, 3) << "a frame that failed tracking must not be fused";
+  EXPECT_EQ(st.frames_processed, 4);
+  send((*tube)->Render(3), 4);
+  st = Status();
+  EXPECT_EQ(int(st.state), int(vdeform::server_status_t::STATE_TRACKING)) << st.message;
+  EXPECT_EQ(st.model_frames, 4);
+
+  vdeform::control_t c{};
+  c.utime = 0;
+  c.command = vdeform::control_t::COMMAND_RESET;
+  c.auth_size = 0;
+  lcm_.publish(kControlChannel, &c);
+  Pump();
+  EXPECT_FALSE(node_->RunOnce()) << "a reset, no frame";
+  st = Status();
+  EXPECT_EQ(int(st.state), int(vdeform::server_status_t::STATE_IDLE));
+  EXPECT_EQ(st.model_frames, 0);
+  send((*cloth)->Render(0), 5);
+  st = Status();
+  EXPECT_EQ(int(st.state), int(vdeform::server_status_t::STATE_TRACKING)) << "the new model is the new scene";
+  EXPECT_EQ(st.model_frames, 1);
+}
+
 }  // namespace
 }  // namespace vd
