@@ -40,6 +40,13 @@ FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
     d.status = PermissionDenied("source '" + msg->source_id + "' is not accepted");
     return d;
   }
+  if (options_.max_frame_pixels > 0 && int64_t(msg->width) * int64_t(msg->height) > options_.max_frame_pixels) {
+    ++counters_.rejected;
+    d.status = OutOfRange("frame of " + std::to_string(msg->width) + "x" + std::to_string(msg->height) +
+                          " exceeds the server's limit of " + std::to_string(options_.max_frame_pixels) + " pixels");
+    d.reason = "oversized";
+    return d;
+  }
   if (msg->seq < 0 || msg->utime < 0) {
     ++counters_.rejected;
     d.status = InvalidArgument("frame has a negative sequence number or capture time");

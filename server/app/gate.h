@@ -24,6 +24,9 @@ struct GateOptions {
   // Authenticated commands older or newer than this (vs the server's clock) are refused, which
   // with the strictly increasing utime check stops replays.
   int64_t control_max_skew_us = 30'000'000;
+  // Frames declaring more pixels are refused before decoding (a 16-byte RVL stream can declare an
+  // 8192 x 8192 image: 128 MB of depth). 0 = no limit beyond the decoders' 8192 x 8192.
+  int64_t max_frame_pixels = 2048 * 2048;
 };
 
 // Per-frame outcome.

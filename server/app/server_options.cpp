@@ -59,6 +59,8 @@ void ServerOptions::Register(FlagParser* f) {
   f->AddString("control-key-file", &control_key_file,
                "File holding the HMAC-SHA256 key (>= 16 bytes, mode 600) that RESET and SAVE_SNAPSHOT commands must "
                "be signed with (vdeform-control --key-file); empty = control is not authenticated");
+  f->AddInt("max-frame-pixels", &max_frame_pixels,
+             "Frames declaring more pixels (width x height) are refused before decoding (0 = up to 8192 x 8192)");
   f->AddBool("quiet", &quiet, "Only warnings and errors");
 }
 
@@ -89,6 +91,8 @@ StatusOr<EngineParams> ServerOptions::ToEngineParams() const {
 
 StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
   GateOptions g;
+  if (max_frame_pixels < 0) return InvalidArgument("--max-frame-pixels must be >= 0");
+  g.max_frame_pixels = max_frame_pixels;
   size_t begin = 0;
   while (begin <= accept_sources.size() && !accept_sources.empty()) {
     const size_t end = std::min(accept_sources.find(',', begin), accept_sources.size());

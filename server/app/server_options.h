@@ -53,6 +53,8 @@ struct ServerOptions {
   // that change state only with an HMAC under the key in this file.
   std::string accept_sources;
   std::string control_key_file;
+  // Largest frame accepted, in pixels (checked before decoding).
+  int64_t max_frame_pixels = GateOptions().max_frame_pixels;
   bool quiet = false;
 
   void Register(FlagParser* flags);

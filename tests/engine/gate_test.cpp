@@ -92,6 +92,19 @@ TEST_F(GateTest, ExtremeSequenceNumbersAndTimesAreHandled) {
   }
 }
 
+TEST_F(GateTest, FramesAboveThePixelLimitAreRefusedBeforeDecoding) {
+  GateOptions o;
+  o.max_frame_pixels = 160 * 120 - 1;
+  FrameGate g(o);
+  const auto b = Bytes("cam", 0, 1);
+  FrameDecision d = g.OnFrame(b.data(), b.size());
+  EXPECT_EQ(d.verdict, FrameVerdict::kRejected);
+  EXPECT_EQ(d.reason, "oversized");
+  o.max_frame_pixels = 160 * 120;
+  FrameGate ok(o);
+  EXPECT_EQ(ok.OnFrame(b.data(), b.size()).verdict, FrameVerdict::kAccept);
+}
+
 TEST_F(GateTest, OnlyAcceptedSourcesPass) {
   GateOptions o;
   o.accept_sources = {"left", "right"};
