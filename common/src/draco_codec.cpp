@@ -214,14 +214,19 @@ StatusOr<std::vector<uint8_t>> EncodeMeshDraco(const TriangleMesh& mesh, const D
   VD_RETURN_IF_ERROR(mesh.Validate());
   if (mesh.empty()) return InvalidArgument("cannot Draco-encode a mesh with no triangles");
   // Draco quantises positions relative to the bounding box, in float: an extent that overflows
-  // (coordinates of both signs near FLT_MAX) makes it cast infinity to an integer and crash.
+  // (coordinates of both signs near FLT_MAX) makes it cast infinity to an integer and crash, and a
+  // box reaching near FLT_MAX dequantises to infinity on the other side. Metres never come near:
+  // refuse coordinates and extents beyond kMaxDracoCoordinate.
   float min_xyz[3], max_xyz[3];
   mesh.Bounds(min_xyz, max_xyz);
   for (int a = 0; a < 3; ++a)
-    if (!std::isfinite(max_xyz[a] - min_xyz[a])) {
-      char text[160];
-      std::snprintf(text, sizeof(text), "cannot Draco-encode a mesh whose extent along axis %d (%g .. %g) overflows float",
-                    a, min_xyz[a], max_xyz[a]);
+    if (!(max_xyz[a] - min_xyz[a] <= kMaxDracoCoordinate) || !(std::fabs(min_xyz[a]) <= kMaxDracoCoordinate) ||
+        !(std::fabs(max_xyz[a]) <= kMaxDracoCoordinate)) {
+      char text[200];
+      std::snprintf(text, sizeof(text),
+                    "cannot Draco-encode a mesh whose coordinates along axis %d (%g .. %g) exceed %g in magnitude "
+                    "or extent",
+                    a, min_xyz[a], max_xyz[a], double(kMaxDracoCoordinate));
       return InvalidArgument(text);
     }
   const size_t num_points = mesh.num_vertices();

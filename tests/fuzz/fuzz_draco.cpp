@@ -1,7 +1,7 @@
 // DecodeMeshDraco on arbitrary bytes. An accepted mesh has triangles, passes the common mesh
 // checks (fuzz_util.h), and encodes again: EncodeMeshDraco keeps vertex and triangle counts
 // (edgebreaker may reorder; it falls back to sequential coding when counts would change), and the
-// attributes present stay present. Its only excuse: an extent that overflows float.
+// attributes present stay present. Its only excuse: coordinates beyond kMaxDracoCoordinate.
 #include <cmath>
 
 #include "fuzz_util.h"
@@ -21,11 +21,14 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   options.include_normals = true;
   auto encoded = vd::EncodeMeshDraco(*mesh, options);
   if (!encoded.ok()) {
-    // The one mesh it may refuse: an extent Draco cannot quantise in float.
+    // The one mesh it may refuse: coordinates or an extent beyond kMaxDracoCoordinate, which
+    // Draco cannot quantise and dequantise in float.
     float min_xyz[3], max_xyz[3];
     mesh->Bounds(min_xyz, max_xyz);
     bool overflows = false;
-    for (int a = 0; a < 3; ++a) overflows |= !std::isfinite(max_xyz[a] - min_xyz[a]);
+    for (int a = 0; a < 3; ++a)
+      overflows |= !(max_xyz[a] - min_xyz[a] <= vd::kMaxDracoCoordinate) ||
+                   !(std::fabs(min_xyz[a]) <= vd::kMaxDracoCoordinate) || !(std::fabs(max_xyz[a]) <= vd::kMaxDracoCoordinate);
     VD_FUZZ_CHECK(overflows && encoded.status().code() == vd::StatusCode::kInvalidArgument);
     return 0;
   }

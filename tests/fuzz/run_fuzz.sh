@@ -3,7 +3,10 @@
 # corpora of valid encodings, replays the committed reproducers in tests/fuzz/regressions/<target>/,
 # then fuzzes every target for SECONDS.
 #   tests/fuzz/run_fuzz.sh [SECONDS] [--build-dir DIR] [--only NAME[,NAME...]] [--jobs N] [--parallel P]
-# SECONDS per target (default 10), P targets at a time (default 1), N build jobs (default 2). DIR
+#                          [--runs R --seed S]
+# SECONDS per target (default 10), P targets at a time (default 1), N build jobs (default 2).
+# --runs R --seed S: instead of SECONDS, R inputs per target from random seed S and a fresh corpus
+# (the seeds only): the same inputs on every machine, so a test run cannot fail by luck. DIR
 # defaults to build-fuzz/ in the repository (ignored by git); DIR/fuzz/corpus/ keeps what earlier
 # runs found. A crash, leak, time-out or out-of-memory input fails the run and is saved in
 # DIR/fuzz/artifacts/<target>/. VD_FUZZ_CC / VD_FUZZ_CXX pick the compilers (default clang, clang++).
@@ -17,17 +20,24 @@ build_dir=$repo/build-fuzz
 only=""
 jobs=2
 parallel=1
+runs=""
+seed=""
 while [ $# -gt 0 ]; do
   case "$1" in
     --build-dir) build_dir=$2; shift 2 ;;
     --only) only=$2; shift 2 ;;
     --jobs) jobs=$2; shift 2 ;;
     --parallel) parallel=$2; shift 2 ;;
-    -h|--help) sed -n '2,11p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --runs) runs=$2; shift 2 ;;
+    --seed) seed=$2; shift 2 ;;
+    -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     [0-9]*) seconds=$1; shift ;;
     *) echo "run_fuzz: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
+if [ -n "$runs" ] || [ -n "$seed" ]; then
+  [[ "$runs" =~ ^[0-9]+$ && "$seed" =~ ^[0-9]+$ ]] || { echo "run_fuzz: --runs and --seed go together, as numbers" >&2; exit 2; }
+fi
 cc=${VD_FUZZ_CC:-clang}
 cxx=${VD_FUZZ_CXX:-clang++}
 
@@ -109,6 +119,13 @@ fuzz_one() {
   fi
 
   local corpus=$fuzz_dir/corpus/$name artifacts=$fuzz_dir/artifacts/$name log=$fuzz_dir/logs/$name.log
+  local budget=(-max_total_time="$seconds")
+  if [ -n "$runs" ]; then
+    # Deterministic: a fresh corpus each time, a fixed number of inputs from a fixed seed.
+    corpus=$fuzz_dir/corpus-fixed/$name
+    rm -rf "$corpus"
+    budget=(-runs="$runs" -seed="$seed")
+  fi
   mkdir -p "$corpus" "$artifacts"
   local seed_dirs=() sets=() set extra=() result=ok
   if [ "$seeds" != "-" ]; then
@@ -118,7 +135,7 @@ fuzz_one() {
   [ "$dict" != "-" ] && extra+=("-dict=$dict")
   # -close_fd_mask=2: libpng and libjpeg print a line per bad input to the target's stderr;
   # libFuzzer, the sanitizers and VD_FUZZ_CHECK report through their own copy of it.
-  if ! run_target "$log" "$bin/$name" -max_total_time="$seconds" -max_len="$max_len" -close_fd_mask=2 \
+  if ! run_target "$log" "$bin/$name" "${budget[@]}" -max_len="$max_len" -close_fd_mask=2 \
       -artifact_prefix="$artifacts/" -print_final_stats=1 "${extra[@]}" "$corpus" "${seed_dirs[@]}"; then
     result=FAILED
     touch "$out.failed"
@@ -160,6 +177,6 @@ done
 printf '%-20s %10s %8s %6s %7s %5s  %s\n' target execs exec/s cov corpus regr result
 for name in "${names[@]}"; do cat "$results/$name.row" 2>/dev/null || printf '%-20s (no result)\n' "$name"; done
 elapsed=$(($(date +%s) - start))
-echo "run_fuzz: ${#names[@]} targets, $total_execs executions in $elapsed s ($seconds s each, $parallel at a time)," \
+echo "run_fuzz: ${#names[@]} targets, $total_execs executions in $elapsed s ($([ -n "$runs" ] && echo "$runs runs from seed $seed" || echo "$seconds s") each, $parallel at a time)," \
   "${#failed[@]} failed${failed:+: ${failed[*]}}"
 [ ${#failed[@]} -eq 0 ]

@@ -154,14 +154,35 @@ TEST(FuzzRegressionTest, DracoExtentOverflowingFloatIsRefused) {
   auto encoded = EncodeMeshDraco(mesh);
   ASSERT_FALSE(encoded.ok());
   EXPECT_EQ(encoded.status().code(), StatusCode::kInvalidArgument);
-  EXPECT_NE(encoded.status().message().find("extent along axis 0"), std::string::npos) << encoded.status().message();
-  // Half that extent is representable and still encodes.
-  for (float& p : mesh.positions) p *= 0.5f;
+  EXPECT_NE(encoded.status().message().find("along axis 0"), std::string::npos) << encoded.status().message();
+  // Coordinates up to kMaxDracoCoordinate still encode.
+  for (float& p : mesh.positions) p *= 0.5f * kMaxDracoCoordinate / 3e38f;
   auto half = EncodeMeshDraco(mesh);
   ASSERT_TRUE(half.ok()) << half.status().ToString();
   auto decoded = DecodeMeshDraco(half->data(), half->size());
   ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
   EXPECT_EQ(decoded->num_triangles(), 4u);
+}
+
+// fuzz_draco (invariant, found by the CI run of fuzz_short): a stream decoding to coordinates near
+// -FLT_MAX with a finite extent re-encoded fine, but Draco's dequantisation of that box gave
+// infinity, so the re-encoded mesh no longer decoded. EncodeMeshDraco now refuses coordinates and
+// extents beyond kMaxDracoCoordinate (1e30).
+TEST(FuzzRegressionTest, DracoCoordinatesNearFloatMaxAreRefusedBeforeEncoding) {
+  const std::vector<uint8_t> stream = {
+      0x44, 0x52, 0x41, 0x43, 0x4f, 0x02, 0x02, 0x01, 0x00, 0x00, 0x00, 0x04, 0x04, 0x01, 0x00, 0x02, 0x01, 0x00,
+      0x01, 0x03, 0x00, 0x03, 0x02, 0x01, 0x02, 0x03, 0x01, 0x02, 0x00, 0x09, 0x03, 0x00, 0x00, 0x06, 0x02, 0x03,
+      0x00, 0x00, 0x00, 0x01, 0x02, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x08, 0xfb, 0xff, 0x00,
+      0x6e, 0xff, 0xff, 0xff, 0x7f, 0xff, 0xc6, 0x00, 0x00, 0x10, 0x61, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+      0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00,
+      0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xff, 0xff, 0xff, 0x1b, 0x00, 0x00, 0x00, 0x00, 0xcd,
+      0xcc, 0xcc, 0x3d, 0x0e,
+  };
+  auto mesh = DecodeMeshDraco(stream.data(), stream.size());
+  ASSERT_TRUE(mesh.ok()) << mesh.status().ToString();
+  auto encoded = EncodeMeshDraco(*mesh);
+  ASSERT_FALSE(encoded.ok()) << "encoding it produced a stream that decodes to infinity";
+  EXPECT_EQ(encoded.status().code(), StatusCode::kInvalidArgument);
 }
 
 // fuzz_draco (out of memory): Draco allocates for the face and vertex counts at the start of the

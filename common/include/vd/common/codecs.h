@@ -43,6 +43,9 @@ struct DracoOptions {
   Status Validate() const;
 };
 
+// Largest coordinate magnitude and extent EncodeMeshDraco accepts (far beyond any scene in metres,
+// far enough below FLT_MAX that quantisation cannot overflow).
+inline constexpr float kMaxDracoCoordinate = 1e30f;
 StatusOr<std::vector<uint8_t>> EncodeMeshDraco(const TriangleMesh& mesh, const DracoOptions& options = {});
 StatusOr<TriangleMesh> DecodeMeshDraco(const uint8_t* data, size_t size);
 
