@@ -170,6 +170,21 @@ Status ValidateLcmWire<vdeform::control_t>(const void* data, size_t size) {
   return w.Array(n, 1, "auth");
 }
 
+std::string ServerStateName(int8_t state) {
+  switch (state) {
+    case vdeform::server_status_t::STATE_IDLE:
+      return "IDLE";
+    case vdeform::server_status_t::STATE_TRACKING:
+      return "TRACKING";
+    case vdeform::server_status_t::STATE_TRACKING_LOST:
+      return "TRACKING_LOST";
+    case vdeform::server_status_t::STATE_ERROR:
+      return "ERROR";
+    default:
+      return "INVALID(" + std::to_string(state) + ")";
+  }
+}
+
 std::string ResolveLcmUrl(const std::string& flag_value) {
   if (!flag_value.empty()) return flag_value;
   const char* env = std::getenv("LCM_DEFAULT_URL");

@@ -39,7 +39,6 @@ class Node {
 
   void OnFrame(const lcm::ReceiveBuffer* rbuf, const std::string&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    ++received_;
     FrameDecision d = gate_.OnFrame(rbuf->data, rbuf->data_size);
     switch (d.verdict) {
       case FrameVerdict::kRejected:
@@ -240,7 +239,7 @@ class Node {
     const GateCounters& g = gate_.counters();
     std::printf("vdeform-server: received %lld, processed %lld, dropped %lld, rejected %lld, duplicate %lld, "
                 "reordered %lld, lost %lld, foreign %lld frames; %lld control commands refused\n",
-                (long long)received_, (long long)processed_, (long long)dropped_, (long long)rejected_,
+                (long long)g.received, (long long)processed_, (long long)dropped_, (long long)rejected_,
                 (long long)g.duplicates, (long long)g.reordered, (long long)g.lost, (long long)g.foreign,
                 (long long)g.control_refused);
     if (stats_.count()) std::printf("stages (mean ms): %s\n", stats_.Summary().c_str());
@@ -312,7 +311,7 @@ class Node {
       st.utime = NowUs();
       st.state = state_;
       st.message = message_;
-      st.frames_received = received_;
+      st.frames_received = gate_.counters().received;
       st.frames_processed = processed_;
       st.frames_dropped = dropped_;
       st.frames_rejected = rejected_;
@@ -383,18 +382,14 @@ class Node {
       s = engine_->DownloadVolume(&tsdf, &weight, &color);
       if (s.ok()) {
         // Written whole, then renamed: a reader never sees a torn file.
-        const auto tmp = *path / "volume.bin.tmp";
-        std::ofstream out(tmp, std::ios::binary);
         const VdVolume v = engine_->volume();
-        out.write("VDVOL001", 8);
-        out.write(reinterpret_cast<const char*>(&v), sizeof(v));
-        out.write(reinterpret_cast<const char*>(tsdf.data()), std::streamsize(tsdf.size() * sizeof(float)));
-        out.write(reinterpret_cast<const char*>(weight.data()), std::streamsize(weight.size() * sizeof(float)));
-        out.write(reinterpret_cast<const char*>(color.data()), std::streamsize(color.size() * sizeof(uint32_t)));
-        out.close();
-        if (!out) s = Unavailable("cannot write " + tmp.string());
-        else std::filesystem::rename(tmp, *path / "volume.bin", ec);
-        if (ec) s = Unavailable("cannot rename " + tmp.string() + ": " + ec.message());
+        s = WriteFileAtomically(*path / "volume.bin", [&](std::ostream& out) {
+          out.write("VDVOL001", 8);
+          out.write(reinterpret_cast<const char*>(&v), sizeof(v));
+          out.write(reinterpret_cast<const char*>(tsdf.data()), std::streamsize(tsdf.size() * sizeof(float)));
+          out.write(reinterpret_cast<const char*>(weight.data()), std::streamsize(weight.size() * sizeof(float)));
+          out.write(reinterpret_cast<const char*>(color.data()), std::streamsize(color.size() * sizeof(uint32_t)));
+        });
       }
     }
     if (s.ok()) VD_LOG_INFO << "snapshot written to " << path->string();
@@ -411,7 +406,8 @@ class Node {
   bool mesh_requested_ = false;
   std::vector<std::string> snapshot_requests_;
   FrameGate gate_;
-  int64_t received_ = 0, processed_ = 0, dropped_ = 0, rejected_ = 0;
+  // Frames received are counted by the gate; these are what became of them after it.
+  int64_t processed_ = 0, dropped_ = 0, rejected_ = 0;
   // Frames fused into the current model (continued across --resume); whether it changed since
   // the last checkpoint.
   int64_t model_frames_ = 0;

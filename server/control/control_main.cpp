@@ -42,20 +42,10 @@ std::optional<vdeform::server_status_t> WaitStatus(lcm::LCM* lcm, StatusWatch* w
   return std::nullopt;
 }
 
-const char* StateName(int8_t s) {
-  switch (s) {
-    case vdeform::server_status_t::STATE_IDLE: return "IDLE";
-    case vdeform::server_status_t::STATE_TRACKING: return "TRACKING";
-    case vdeform::server_status_t::STATE_TRACKING_LOST: return "TRACKING_LOST";
-    case vdeform::server_status_t::STATE_ERROR: return "ERROR";
-    default: return "INVALID";
-  }
-}
-
 // One key=value per line: easy to read, grep and parse in scripts.
 void PrintStatus(const vdeform::server_status_t& st) {
   auto i = [](const char* k, long long v) { std::printf("%s=%lld\n", k, v); };
-  std::printf("state=%s\nmessage=%s\n", StateName(st.state), st.message.c_str());
+  std::printf("state=%s\nmessage=%s\n", vd::ServerStateName(st.state).c_str(), st.message.c_str());
   i("frames_received", st.frames_received);
   i("frames_processed", st.frames_processed);
   i("frames_dropped", st.frames_dropped);

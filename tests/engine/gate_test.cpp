@@ -35,7 +35,9 @@ class GateTest : public ::testing::Test {
     const auto b = Bytes(source, seq, utime, corrupt);
     FrameDecision d = g->OnFrame(b.data(), b.size());
     EXPECT_EQ(d.verdict == FrameVerdict::kAccept, d.frame.has_value());
-    if (d.frame) EXPECT_EQ(d.frame->seq, seq);
+    if (d.frame) {
+      EXPECT_EQ(d.frame->seq, seq);
+    }
     return d.verdict;
   }
   RgbdFrame frame_;

@@ -29,21 +29,6 @@ std::string StageTimes(const vdeform::server_status_t& status, size_t max_stages
 
 }  // namespace
 
-std::string ServerStateName(int8_t state) {
-  switch (state) {
-    case vdeform::server_status_t::STATE_IDLE:
-      return "IDLE";
-    case vdeform::server_status_t::STATE_TRACKING:
-      return "TRACKING";
-    case vdeform::server_status_t::STATE_TRACKING_LOST:
-      return "TRACKING_LOST";
-    case vdeform::server_status_t::STATE_ERROR:
-      return "ERROR";
-    default:
-      return "INVALID(" + std::to_string(state) + ")";
-  }
-}
-
 std::string FormatBytes(int64_t bytes) {
   if (bytes < 1024) return std::to_string(bytes) + " B";
   if (bytes < 1024 * 1024) return Fixed(bytes / 1024.0, 1) + " KB";

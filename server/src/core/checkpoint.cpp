@@ -315,6 +315,30 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
   return s;
 }
 
+Status WriteFileAtomically(const std::filesystem::path& path, const std::function<void(std::ostream&)>& write,
+                           const std::filesystem::path& previous) {
+  namespace fs = std::filesystem;
+  const fs::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    write(out);
+    out.close();
+    if (!out) return Unavailable("cannot write '" + tmp.string() + "' (disk full?)");
+  }
+  VD_RETURN_IF_ERROR(SyncFile(tmp.string()));
+  std::error_code ec;
+  // Each rename is atomic; a reader that finds no file at `path` between the two falls back to
+  // `previous`.
+  if (!previous.empty() && fs::exists(path, ec)) {
+    fs::rename(path, previous, ec);
+    if (ec) return Unavailable("cannot keep '" + path.string() + "' as '" + previous.string() + "': " + ec.message());
+  }
+  fs::rename(tmp, path, ec);
+  if (ec) return Unavailable("cannot rename '" + tmp.string() + "': " + ec.message());
+  (void)SyncFile(path.parent_path().empty() ? "." : path.parent_path().string());
+  return Status::Ok();
+}
+
 Status WriteCheckpoint(const std::string& dir, const EngineState& state, size_t* bytes_written) {
   VD_RETURN_IF_ERROR(state.Validate());
   namespace fs = std::filesystem;
@@ -322,24 +346,10 @@ Status WriteCheckpoint(const std::string& dir, const EngineState& state, size_t*
   fs::create_directories(dir, ec);
   if (ec) return Unavailable("cannot create checkpoint directory '" + dir + "': " + ec.message());
   const std::string bytes = EncodeCheckpoint(state);
-  const fs::path final_path = fs::path(dir) / kCheckpointFile;
-  const fs::path tmp = fs::path(dir) / (std::string(kCheckpointFile) + ".tmp");
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(bytes.data(), std::streamsize(bytes.size()));
-    out.close();
-    if (!out) return Unavailable("cannot write '" + tmp.string() + "' (disk full?)");
-  }
-  VD_RETURN_IF_ERROR(SyncFile(tmp.string()));
-  // The current checkpoint becomes the previous one; each rename is atomic, and a reader that
-  // finds no checkpoint.vdck between the two falls back to checkpoint.prev.vdck.
-  if (fs::exists(final_path, ec)) {
-    fs::rename(final_path, fs::path(dir) / kPreviousCheckpointFile, ec);
-    if (ec) return Unavailable("cannot keep the previous checkpoint: " + ec.message());
-  }
-  fs::rename(tmp, final_path, ec);
-  if (ec) return Unavailable("cannot rename '" + tmp.string() + "': " + ec.message());
-  (void)SyncFile(dir);
+  VD_RETURN_IF_ERROR(WriteFileAtomically(
+      fs::path(dir) / kCheckpointFile,
+      [&](std::ostream& out) { out.write(bytes.data(), std::streamsize(bytes.size())); },
+      fs::path(dir) / kPreviousCheckpointFile));
   if (bytes_written) *bytes_written = bytes.size();
   return Status::Ok();
 }

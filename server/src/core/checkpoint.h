@@ -5,6 +5,9 @@
 // contents, so a torn or corrupt file is detected and reported, never loaded. Untouched 8^3
 // bricks (the reset values throughout) are not stored: a checkpoint is the size of the surface.
 #include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <ostream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -48,6 +51,11 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes);
 // File names inside a checkpoint directory.
 inline constexpr const char* kCheckpointFile = "checkpoint.vdck";
 inline constexpr const char* kPreviousCheckpointFile = "checkpoint.prev.vdck";
+
+// Writes `path` so that a reader never sees a partial file: `write` fills path.tmp, which is synced
+// and renamed over `path`; when `previous` is given, the file at `path` is first renamed to it.
+Status WriteFileAtomically(const std::filesystem::path& path, const std::function<void(std::ostream&)>& write,
+                           const std::filesystem::path& previous = {});
 
 // Writes dir/checkpoint.vdck atomically, keeping the one before as checkpoint.prev.vdck.
 // bytes_written receives the file size when not null.

@@ -31,6 +31,8 @@ inline constexpr const char* kDefaultLcmUrl = "udpm://239.255.76.67:7667?ttl=0&r
 // What to check when LCM cannot be opened (appended to the programs' error).
 inline constexpr const char* kLcmRouteHint =
     "(no multicast route? one host: ip route add 224.0.0.0/4 dev lo; several hosts: the same on the LAN interface; see deploy/prepare-host.sh --check and docs/OPERATIONS.md)";
+// server_status_t.state as text: "IDLE", "TRACKING", "TRACKING_LOST", "ERROR" or "INVALID(n)".
+std::string ServerStateName(int8_t state);
 // The flag if given, else $LCM_DEFAULT_URL, else kDefaultLcmUrl.
 std::string ResolveLcmUrl(const std::string& flag_value);
 

@@ -8,13 +8,12 @@
 #include <opencv2/core.hpp>
 #include <vdeform/server_status_t.hpp>
 
+#include "vd/common/messages.h"
 #include "vd/viewer/receiver.h"
 #include "vd/viewer/render.h"
 
 namespace vd {
 
-// "IDLE", "TRACKING", "TRACKING_LOST", "ERROR" or "INVALID(n)".
-std::string ServerStateName(int8_t state);
 // "812 B", "3.4 KB", "12.0 MB".
 std::string FormatBytes(int64_t bytes);
 
