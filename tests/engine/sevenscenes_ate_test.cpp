@@ -59,7 +59,7 @@ StatusOr<AteResult> RunRedKitchen(bool rigid_only) {
     VD_ASSIGN_OR_RETURN(auto next, source->Next());
     if (!next.has_value()) break;
     VD_ASSIGN_OR_RETURN(FrameResult r, engine->Process(*next));
-    for (double t : r.times.ms) ms += t;
+    ms += r.times.Total();
     out.lost += !r.tracking_ok;
     std::snprintf(name, sizeof(name), "/frame-%06d.pose.txt", out.frames);
     const Eigen::Matrix4d truth = gt0_inv * ReadPose(kDir + name);

@@ -10,6 +10,9 @@
 
 /* Accumulator layout: 21 upper-triangular entries of J^T J (row-major), 6 of J^T r, r^2, count. */
 #define VD_ICP_ACC 29
+#define VD_ICP_ACC_JTR 21
+#define VD_ICP_ACC_R2 27
+#define VD_ICP_ACC_COUNT 28
 
 typedef struct {
   /* Current estimate, camera to world. */
@@ -63,9 +66,9 @@ VD_INLINE int vd_icp_pixel(VD_GLOBAL const vd_float4* vmap, VD_GLOBAL const vd_f
   for (int a = 0; a < 6; ++a) {
     for (int b = a; b < 6; ++b) acc[k++] += J[a] * J[b];
   }
-  for (int a = 0; a < 6; ++a) acc[21 + a] += J[a] * r;
-  acc[27] += r * r;
-  acc[28] += 1.0f;
+  for (int a = 0; a < 6; ++a) acc[VD_ICP_ACC_JTR + a] += J[a] * r;
+  acc[VD_ICP_ACC_R2] += r * r;
+  acc[VD_ICP_ACC_COUNT] += 1.0f;
   return 1;
 }
 

@@ -7,8 +7,6 @@
 #include <fstream>
 #include <sstream>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Eigenvalues>
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -259,7 +257,7 @@ StatusOr<VdVolume> Engine::PlaceVolume(const RgbdFrame& frame, const EngineParam
   if (scale < 1.0) {
     VD_LOG_WARNING << "first frame spans " << ext[0] << " x " << ext[1] << " x " << ext[2] << " m; the grid of "
                    << p.voxel_size * 1000 << " mm voxels is limited to " << p.max_grid_mb << " MB = "
-                   << " points, so it covers " << scale * 100 << "% of each side (nearest part kept in depth)";
+                   << int64_t(budget) << " points, so it covers " << scale * 100 << "% of each side (nearest part kept in depth)";
     for (int a = 0; a < 2; ++a) mn[a] += 0.5f * float(1.0 - scale) * ext[a];
   }
   vol.origin = VD_F4(mn[0], mn[1], mn[2], 1.f);
@@ -325,12 +323,21 @@ Status Engine::Track(FrameResult* result) {
   const float min_dot = std::cos(params_.icp_max_normal_angle_deg * float(M_PI) / 180.f);
   Eigen::Matrix4d T = pose_;
   const Eigen::Matrix4d model_inv = model_pose_.inverse();
-  int inliers = 0;
-  double sq = 0.0;
-  // Sum of this frame's increments: the first-order twist from the starting pose.
-  Eigen::Matrix<double, 6, 1> xi_total = Eigen::Matrix<double, 6, 1>::Zero();
+  // E_sparse's part in the pose (paper eq. 1 with the field fixed): each match aligns its
+  // keypoint with the earlier feature moved by the field.
+  pose_pairs_.clear();
+  for (const SparseMatch& m : matches_)
+    pose_pairs_.push_back({Eigen::Vector3d(m.camera_point.x, m.camera_point.y, m.camera_point.z),
+                           Eigen::Vector3d(m.predicted.x, m.predicted.y, m.predicted.z)});
+  IcpSystem sys;
+  Vector6d xi_total = Vector6d::Zero();
   for (int l = 2; l >= 0; --l) {
     const VdCamera cl = ScaledCamera(cam_, l);
+    PoseStepParams step_params;
+    step_params.sparse_weight =
+        params_.features.w_sparse / std::max(1e-6f, params_.solver.w_dense) / float(1 << (2 * l));
+    step_params.sparse_huber = params_.features.pose_huber;
+    step_params.degeneracy = params_.icp_degeneracy;
     for (int it = 0; it < params_.icp_iterations[l]; ++it) {
       VdIcpParams prm{};
       prm.cam_to_world = ToVdPose(T);
@@ -341,85 +348,25 @@ Status Engine::Track(FrameResult* result) {
       prm.min_normal_dot = min_dot;
       double acc[VD_ICP_ACC];
       VD_RETURN_IF_ERROR(ops_.IcpReduce(vmap_[l], nmap_[l], model_.vertex, model_.normal, cl.width * cl.height, prm, acc));
-      inliers = int(acc[28]);
-      sq = acc[27];
-      if (inliers < 6) break;
-      Eigen::Matrix<double, 6, 6> A;
-      Eigen::Matrix<double, 6, 1> b;
-      int q = 0;
-      for (int r = 0; r < 6; ++r)
-        for (int c = r; c < 6; ++c) A(r, c) = A(c, r) = acc[q++];
-      for (int r = 0; r < 6; ++r) b(r) = acc[21 + r];
-      // E_sparse's part in the pose (paper eq. 1 with the field fixed): each match as three
-      // point-to-point rows e . (T p - q), Huber-weighted, scaled like the pixel count of the level.
-      if (!matches_.empty()) {
-        const float w_level = params_.features.w_sparse / std::max(1e-6f, params_.solver.w_dense) / float(1 << (2 * l));
-        const double huber = params_.features.pose_huber;
-        for (const SparseMatch& m : matches_) {
-          const Eigen::Vector3d p(m.camera_point.x, m.camera_point.y, m.camera_point.z);
-          const Eigen::Vector3d pw = T.topLeftCorner<3, 3>() * p + T.topRightCorner<3, 1>();
-          const Eigen::Vector3d res = pw - Eigen::Vector3d(m.predicted.x, m.predicted.y, m.predicted.z);
-          const double norm = res.norm();
-          const double w = w_level * (norm <= huber ? 1.0 : huber / norm);
-          for (int axis = 0; axis < 3; ++axis) {
-            Eigen::Vector3d e = Eigen::Vector3d::Zero();
-            e(axis) = 1.0;
-            Eigen::Matrix<double, 6, 1> J;
-            J.head<3>() = pw.cross(e);
-            J.tail<3>() = e;
-            A.noalias() += w * J * J.transpose();
-            b.noalias() += w * J * res(axis);
-          }
-        }
-      }
-      // Prior towards the frame's starting pose in the directions the depth barely observes (the
-      // spin of a surface of revolution about its axis, a plane sliding in itself), where a bare
-      // Gauss-Newton step turns noise and small model errors into drift. Direction i of A, with
-      // information ratio r_i = lambda_i / lambda_max, gets prior weight lambda_i (tau / r_i)^2:
-      // its step shrinks by r_i^2 / (r_i^2 + tau^2), nothing for r_i >> tau, all for r_i << tau.
-      if (params_.icp_degeneracy > 0.f) {
-        const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 6, 6>> es(A);
-        const double lmax = std::max(es.eigenvalues()(5), 1e-30);
-        const double tau = params_.icp_degeneracy;
-        Eigen::Matrix<double, 6, 1> mu;
-        for (int i = 0; i < 6; ++i) {
-          const double r = std::max(es.eigenvalues()(i) / lmax, 1e-12);
-          mu(i) = lmax * tau * tau / r;
-        }
-        const Eigen::Matrix<double, 6, 6> P = es.eigenvectors() * mu.asDiagonal() * es.eigenvectors().transpose();
-        A += P;
-        b += P * xi_total;
-      }
-      const Eigen::Matrix<double, 6, 1> xi = A.ldlt().solve(-b);
-      if (!xi.allFinite()) break;
-      const Eigen::Vector3d w = xi.head<3>();
-      Eigen::Matrix4d dT = Eigen::Matrix4d::Identity();
-      const double angle = w.norm();
-      if (angle > 1e-12) dT.topLeftCorner<3, 3>() = Eigen::AngleAxisd(angle, w / angle).toRotationMatrix();
-      dT.topRightCorner<3, 1>() = xi.tail<3>();
-      T = dT * T;
-      xi_total += xi;
-      if (xi.norm() < 1e-6) break;
+      sys = IcpSystem::FromAccumulator(acc);
+      if (sys.inliers < 6) break;
+      const PoseStep step = SolvePoseStep(sys, pose_pairs_, T, xi_total, step_params);
+      if (!step.ok) break;
+      T = step.pose;
+      xi_total += step.xi;
+      if (step.xi.norm() < 1e-6) break;
     }
   }
-  result->icp_inliers = inliers;
-  result->icp_rmse = inliers > 0 ? float(std::sqrt(sq / inliers)) : 0.f;
-  // Failure checks: too few inliers, or an implausible jump.
-  const int valid = valid_pixels_;
-  const Eigen::Matrix4d delta = pose_.inverse() * T;
-  const double dt = delta.topRightCorner<3, 1>().norm();
-  const double dr = Eigen::AngleAxisd(Eigen::Matrix3d(delta.topLeftCorner<3, 3>())).angle() * 180.0 / M_PI;
-  std::ostringstream why;
-  if (inliers < params_.min_inlier_fraction * valid) {
-    why << "too few ICP inliers (" << inliers << " of " << valid << " valid pixels)";
-  } else if (dt > params_.max_frame_translation || dr > params_.max_frame_rotation_deg) {
-    why << "implausible motion (" << dt * 1000 << " mm, " << dr << " deg in one frame)";
-  } else if (!T.allFinite()) {
-    why << "non-finite pose";
-  }
-  if (!why.str().empty()) {
+  result->icp_inliers = sys.inliers;
+  result->icp_rmse = sys.inliers > 0 ? float(std::sqrt(sys.sum_sq_residual / sys.inliers)) : 0.f;
+  TrackingLimits limits;
+  limits.min_inlier_fraction = params_.min_inlier_fraction;
+  limits.max_translation = params_.max_frame_translation;
+  limits.max_rotation_deg = params_.max_frame_rotation_deg;
+  const std::string why = CheckTracking(pose_, T, sys.inliers, valid_pixels_, limits);
+  if (!why.empty()) {
     result->tracking_ok = false;
-    result->tracking_message = why.str() + "; kept the last good pose";
+    result->tracking_message = why + "; kept the last good pose";
     return Status::Ok();
   }
   pose_ = T;
@@ -435,7 +382,7 @@ Status Engine::ExtractMesh(FrameResult* result) {
     VD_RETURN_IF_ERROR(ops_.GridToWorld(volume_.vol, &mesh_));
   }
   VD_RETURN_IF_ERROR(ctx_->Finish());
-  result->times.ms[5] = MsSince(t0);
+  result->times[Stage::kMarchingCubes] = MsSince(t0);
   t0 = Clock::now();
   const size_t nv = mesh_.num_vertices, nt = mesh_.num_triangles;
   // Host copies reuse the engine's scratch: no allocation per frame once the mesh stops growing.
@@ -481,7 +428,7 @@ Status Engine::ExtractMesh(FrameResult* result) {
       live.colors[3 * i + a] = canon.colors[3 * i + a] = uint8_t((col[i] >> (8 * a)) & 255u);
     }
   }
-  result->times.ms[6] = MsSince(t0);
+  result->times[Stage::kDownload] = MsSince(t0);
   return Status::Ok();
 }
 
@@ -531,7 +478,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   if (sparse) extractor_.Prefetch(frame);
   auto t0 = Clock::now();
   VD_RETURN_IF_ERROR(Preprocess(frame));
-  result.times.ms[0] = MsSince(t0);
+  result.times[Stage::kPreprocess] = MsSince(t0);
 
   // The field exists, has been fused into and has a surface: the non-rigid path runs.
   const bool nonrigid = initialised_ && volume_.has_deformation() && frames_fused_ > 0 && mesh_.num_triangles > 0;
@@ -550,7 +497,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       VD_RETURN_IF_ERROR(matcher_.Match(features, history_, history_.Candidates(params_.features), volume_,
                                         ToVdPose(pose_), cam_, params_.features, &matches_, &stats));
       result.feature_match_ms = MsSince(t0);
-      result.times.ms[7] += result.feature_match_ms;
+      result.times[Stage::kFeatures] += result.feature_match_ms;
     }
   }
   if (!initialised_) {
@@ -571,10 +518,10 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     t0 = Clock::now();
     VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, ToVdPose(model_pose_.inverse()), cam_, &model_));
     VD_RETURN_IF_ERROR(ctx_->Finish());
-    result.times.ms[1] = MsSince(t0);
+    result.times[Stage::kRaster] = MsSince(t0);
     t0 = Clock::now();
     VD_RETURN_IF_ERROR(Track(&result));
-    result.times.ms[2] = MsSince(t0);
+    result.times[Stage::kIcp] = MsSince(t0);
   }
   result.pose = pose_;
   if (result.tracking_ok) {
@@ -587,7 +534,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0) {
     t0 = Clock::now();
     VD_RETURN_IF_ERROR(NonRigid(&result));
-    result.times.ms[3] = MsSince(t0);
+    result.times[Stage::kNonRigid] = MsSince(t0);
   }
   if (result.tracking_ok && sparse) {
     // Into the canonical pose through this frame's field (after its solve), before fusion
@@ -599,7 +546,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     history_.Add(std::move(features), params_.features.keyframe_interval);
     history_.Compact(params_.features);
     result.feature_lift_ms = MsSince(t0);
-    result.times.ms[7] += result.feature_lift_ms;
+    result.times[Stage::kFeatures] += result.feature_lift_ms;
   }
   if (result.tracking_ok) {
     t0 = Clock::now();
@@ -610,7 +557,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
     }
     VD_RETURN_IF_ERROR(ctx_->Finish());
-    result.times.ms[4] = MsSince(t0);
+    result.times[Stage::kIntegrate] = MsSince(t0);
     ++frames_fused_;
   }
   VD_RETURN_IF_ERROR(ExtractMesh(&result));

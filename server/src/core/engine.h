@@ -13,6 +13,7 @@
 #include "core/checkpoint.h"
 #include "core/features.h"
 #include "core/hierarchy.h"
+#include "core/rigid_tracker.h"
 #include "core/solver.h"
 #include "vd/common/frame.h"
 #include "vd/common/mesh.h"
@@ -77,13 +78,35 @@ struct EngineParams {
   Status Validate() const;
 };
 
+// The stages of a frame, in the order they are reported (stats, status messages).
+enum class Stage : int {
+  kPreprocess,
+  kRaster,
+  kIcp,
+  kNonRigid,
+  kIntegrate,
+  kMarchingCubes,
+  kDownload,
+  // Matching and lifting on the frame's thread (detection runs beside it, see
+  // FrameResult::feature_extract_ms).
+  kFeatures,
+  kCount
+};
+
 // Wall-clock milliseconds of each stage of the last frame.
 struct StageTimes {
-  static constexpr int kCount = 8;
-  // "features": matching and lifting on the frame's thread (detection runs beside it, see
-  // FrameResult::feature_extract_ms).
+  static constexpr int kCount = int(Stage::kCount);
   static constexpr const char* kNames[kCount] = {"preprocess", "raster",   "icp",      "nonrigid",
                                                  "integrate",  "marching_cubes", "download", "features"};
+  double& operator[](Stage s) { return ms[int(s)]; }
+  double operator[](Stage s) const { return ms[int(s)]; }
+  static const char* Name(Stage s) { return kNames[int(s)]; }
+  double Total() const {
+    double t = 0.0;
+    for (double v : ms) t += v;
+    return t;
+  }
+  // Indexed by Stage; the array is for code that walks every stage (statistics, status).
   std::array<double, kCount> ms{};
 };
 
@@ -186,6 +209,8 @@ class Engine {
   FeatureMatcher matcher_;
   std::vector<SparseMatch> matches_;
   std::vector<VdCorrespondence> sparse_host_;
+  // This frame's matches as the pose step takes them.
+  std::vector<PosePair> pose_pairs_;
   int64_t frames_seen_ = 0;
   Eigen::Matrix4d pose_ = Eigen::Matrix4d::Identity();
   // Pose at which mesh_ was last rendered into model_.
