@@ -8,8 +8,6 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
-#include <functional>
-#include <map>
 #include <memory>
 #include <string>
 #include <vector>
@@ -20,6 +18,7 @@
 #include "vd/capture/source.h"
 #include "vd/capture/synthetic.h"
 #include "vd/common/codecs.h"
+#include "vd/common/flags.h"
 #include "vd/common/log.h"
 #include "vd/common/messages.h"
 
@@ -29,49 +28,10 @@ namespace {
 constexpr const char* kUsage = R"(Usage: vdeform-capture [options]
 
 Reads RGB-D frames and publishes them as vdeform::rgbd_frame_t on the LCM channel VDEFORM_FRAMES,
-with sequence numbers from 0 and utime = capture time.
+with sequence numbers from 0 and utime = capture time.)";
 
-Source:
-  --source SPEC          openni2[:URI]   live OpenNI2 sensor (first real device, or URI;
-                                         openni2:Dummy is OpenNI2's fake device)
-                         oni:FILE        OpenNI2 recording
-                         folder:DIR      data set folder: VolumeDeform, 7-Scenes/BundleFusion,
-                                         DeepDeform, TUM RGB-D or KillingFusion (detected)
-                         synthetic:NAME  synthetic scene (tube, cloth, rigid)
-                         default: synthetic:tube
-  --intrinsics FX,FY,CX,CY  override the source's intrinsics (pixels)
-  --depth-scale S        override the raw depth units per metre
-  --start N              first frame to send (finite sources), default 0
-  --count N              send at most N frames (with --loop: per pass), default all
-  --stride N             send every N-th frame, default 1
-  --loop                 restart at --start after the last frame (endless)
-  --no-noise             synthetic scenes without Kinect-like depth noise
-  --read-timeout S       give up on a sensor/recording read after S seconds, default 2
-
-Rate:
-  --fps N                send at N frames per second, default: the source's own rate
-  --max-rate             send as fast as possible (no pacing)
-  --lockstep             send frame k+1 only after the server reported frame k processed
-                         (server_status_t on VDEFORM_STATUS naming our --source-id)
-  --lockstep-timeout S   seconds to wait for that report before re-sending, default 10
-  --lockstep-retries N   re-sends of an unacknowledged frame before giving up, default 3
-
-Encoding and transport:
-  --depth-codec C        rvl (default), png or raw
-  --color-codec C        jpeg (default), raw or none
-  --jpeg-quality Q       1..100, default 90
-  --source-id ID         default capture-<hostname>-<pid>
-  --lcm-url URL          default: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304
-
-Other:
-  --write DIR            with a synthetic source: write the scene as a VolumeDeform-layout folder
-                         (colour, depth, intrinsics.txt, ground-truth .gt.ply and .pose.txt) and
-                         exit without LCM; --count N spreads the scene's motion over N frames
-  --quiet                no progress line and no informational log (errors and the summary remain)
-  --help                 this text
-
-Exit status: 0 on success or after SIGINT/SIGTERM, 1 on a run-time error, 2 on bad arguments.
-)";
+constexpr const char* kEpilogue =
+    "Exit status: 0 on success or after SIGINT/SIGTERM, 1 on a run-time error, 2 on bad arguments.\n";
 
 std::atomic<bool> g_stop{false};
 
@@ -80,7 +40,7 @@ void OnSignal(int) { g_stop.store(true); }
 struct Args {
   std::string source = "synthetic:tube";
   SourceOptions source_options;
-  // 0 with has_fps false: the source's own rate.
+  // Used only when --fps is given (has_fps); otherwise the source's own rate.
   double fps = 0.0;
   bool has_fps = false;
   bool max_rate = false;
@@ -93,125 +53,78 @@ struct Args {
   std::string write_dir;
   bool quiet = false;
   bool help = false;
-  // Flags given, to reject combinations that would be silently ignored.
-  std::map<std::string, bool> given;
+  std::string help_text;
 };
 
-StatusOr<double> ParseDouble(const std::string& flag, const std::string& text) {
-  try {
-    size_t used = 0;
-    const double v = std::stod(text, &used);
-    if (used == text.size() && std::isfinite(v)) return v;
-  } catch (const std::exception&) {
-  }
-  return InvalidArgument(flag + ": '" + text + "' is not a number");
-}
-
-StatusOr<int64_t> ParseInt(const std::string& flag, const std::string& text) {
-  try {
-    size_t used = 0;
-    const long long v = std::stoll(text, &used);
-    if (used == text.size()) return static_cast<int64_t>(v);
-  } catch (const std::exception&) {
-  }
-  return InvalidArgument(flag + ": '" + text + "' is not an integer");
+void Bind(FlagParser* f, Args* a) {
+  f->Section("Source");
+  f->Add("source", &a->source,
+         "openni2[:URI] live OpenNI2 sensor (first real device, or URI; openni2:Dummy is OpenNI2's fake device); "
+         "oni:FILE OpenNI2 recording; folder:DIR data set folder: VolumeDeform, 7-Scenes/BundleFusion, DeepDeform, "
+         "TUM RGB-D or KillingFusion (detected); synthetic:NAME synthetic scene (tube, cloth, rigid)",
+         "SPEC");
+  f->Add("intrinsics", &a->source_options.intrinsics, "Override the source's intrinsics, pixels", "FX,FY,CX,CY");
+  f->Add("depth-scale", &a->source_options.depth_scale, "Override the raw depth units per metre (0 = source's)", "S");
+  f->Add("start", &a->source_options.start, "First frame to send (finite sources)", "N");
+  f->Add("count", &a->source_options.count, "Send at most N frames (with --loop: per pass; -1 = all)", "N");
+  f->Add("stride", &a->source_options.stride, "Send every N-th frame", "N");
+  f->AddSwitch("loop", &a->source_options.loop, "Restart at --start after the last frame (endless)");
+  f->AddNegation("no-noise", &a->source_options.synthetic_noise, "Synthetic scenes without Kinect-like depth noise");
+  f->Add("read-timeout", &a->source_options.read_timeout_s, "Give up on a sensor/recording read after S seconds", "S");
+  f->Section("Rate");
+  f->AddCustom("fps", "N", "the source's own rate", "Send at N frames per second", [a](const std::string& v) {
+    VD_ASSIGN_OR_RETURN(a->fps, ParseFlagNumber("fps", v));
+    return Status::Ok();
+  });
+  f->AddSwitch("max-rate", &a->max_rate, "Send as fast as possible (no pacing)");
+  f->AddSwitch("lockstep", &a->lockstep,
+               "Send frame k+1 only after the server reported frame k processed (server_status_t on VDEFORM_STATUS "
+               "naming our --source-id)");
+  f->Add("lockstep-timeout", &a->lockstep_timeout_s, "Seconds to wait for that report before re-sending", "S");
+  f->Add("lockstep-retries", &a->lockstep_retries, "Re-sends of an unacknowledged frame before giving up", "N");
+  f->Section("Encoding and transport");
+  f->AddCustom("depth-codec", "C", DepthEncodingName(a->encode.depth), "rvl, png or raw", [a](const std::string& v) {
+    VD_ASSIGN_OR_RETURN(a->encode.depth, ParseDepthEncoding(v));
+    return Status::Ok();
+  });
+  f->AddCustom("color-codec", "C", ColorEncodingName(a->encode.color), "jpeg, raw or none", [a](const std::string& v) {
+    VD_ASSIGN_OR_RETURN(a->encode.color, ParseColorEncoding(v));
+    return Status::Ok();
+  });
+  f->Add("jpeg-quality", &a->encode.jpeg_quality, "JPEG quality, 1..100", "Q");
+  f->Add("source-id", &a->source_id, "Source id in every frame (default capture-<hostname>-<pid>)", "ID");
+  f->Add("lcm-url", &a->lcm_url,
+         "LCM URL (default: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304)", "URL");
+  f->Section("Other");
+  f->Add("write", &a->write_dir,
+         "With a synthetic source: write the scene as a VolumeDeform-layout folder (colour, depth, intrinsics.txt, "
+         "ground-truth .gt.ply and .pose.txt) and exit without LCM; --count N spreads the scene's motion over N frames",
+         "DIR");
+  f->AddSwitch("quiet", &a->quiet, "No progress line and no informational log (errors and the summary remain)");
 }
 
 StatusOr<Args> ParseArgs(int argc, char** argv) {
   Args a;
-  using Setter = std::function<Status(const std::string&)>;
-  auto real = [](double* out, const char* flag) -> Setter {
-    return [out, flag](const std::string& v) {
-      VD_ASSIGN_OR_RETURN(*out, ParseDouble(flag, v));
-      return Status::Ok();
-    };
-  };
-  auto integer = [](auto* out, const char* flag) -> Setter {
-    return [out, flag](const std::string& v) {
-      VD_ASSIGN_OR_RETURN(int64_t x, ParseInt(flag, v));
-      if (x < INT32_MIN || x > INT32_MAX) return InvalidArgument(std::string(flag) + ": " + v + " is out of range");
-      *out = static_cast<std::remove_pointer_t<decltype(out)>>(x);
-      return Status::Ok();
-    };
-  };
-  auto text = [](std::string* out) -> Setter {
-    return [out](const std::string& v) {
-      *out = v;
-      return Status::Ok();
-    };
-  };
-  double depth_scale = 0.0;
-  const std::map<std::string, Setter> with_value = {
-      {"--source", text(&a.source)},
-      {"--intrinsics", text(&a.source_options.intrinsics)},
-      {"--depth-scale", real(&depth_scale, "--depth-scale")},
-      {"--start", integer(&a.source_options.start, "--start")},
-      {"--count", integer(&a.source_options.count, "--count")},
-      {"--stride", integer(&a.source_options.stride, "--stride")},
-      {"--read-timeout", real(&a.source_options.read_timeout_s, "--read-timeout")},
-      {"--fps", real(&a.fps, "--fps")},
-      {"--lockstep-timeout", real(&a.lockstep_timeout_s, "--lockstep-timeout")},
-      {"--lockstep-retries", integer(&a.lockstep_retries, "--lockstep-retries")},
-      {"--depth-codec",
-       [&a](const std::string& v) {
-         VD_ASSIGN_OR_RETURN(a.encode.depth, ParseDepthEncoding(v));
-         return Status::Ok();
-       }},
-      {"--color-codec",
-       [&a](const std::string& v) {
-         VD_ASSIGN_OR_RETURN(a.encode.color, ParseColorEncoding(v));
-         return Status::Ok();
-       }},
-      {"--jpeg-quality", integer(&a.encode.jpeg_quality, "--jpeg-quality")},
-      {"--source-id", text(&a.source_id)},
-      {"--lcm-url", text(&a.lcm_url)},
-      {"--write", text(&a.write_dir)},
-  };
-  const std::map<std::string, bool*> switches = {
-      {"--max-rate", &a.max_rate}, {"--lockstep", &a.lockstep}, {"--loop", &a.source_options.loop},
-      {"--quiet", &a.quiet},       {"--help", &a.help},         {"-h", &a.help},
-  };
-  bool no_noise = false;
-  for (int i = 1; i < argc; ++i) {
-    std::string flag = argv[i];
-    std::optional<std::string> value;
-    const size_t eq = flag.find('=');
-    if (flag.rfind("--", 0) == 0 && eq != std::string::npos) {
-      value = flag.substr(eq + 1);
-      flag = flag.substr(0, eq);
-    }
-    if (flag == "--no-noise") {
-      no_noise = true;
-    } else if (auto s = switches.find(flag); s != switches.end()) {
-      if (value) return InvalidArgument(flag + " takes no value");
-      *s->second = true;
-    } else if (auto w = with_value.find(flag); w != with_value.end()) {
-      if (!value) {
-        if (i + 1 >= argc) return InvalidArgument(flag + " needs a value");
-        value = argv[++i];
-      }
-      VD_RETURN_IF_ERROR(w->second(*value));
-    } else {
-      return InvalidArgument("unknown argument '" + std::string(argv[i]) + "'");
-    }
-    a.given[flag] = true;
+  FlagParser flags(kUsage, kEpilogue);
+  Bind(&flags, &a);
+  VD_RETURN_IF_ERROR(flags.Parse(argc, argv, &a.help));
+  if (a.help) {
+    a.help_text = flags.Help();
+    return a;
   }
-  a.has_fps = a.given.count("--fps") > 0;
-  a.source_options.depth_scale = static_cast<float>(depth_scale);
-  a.source_options.synthetic_noise = !no_noise;
-  if (a.help) return a;
+  a.has_fps = flags.Given("fps");
   VD_RETURN_IF_ERROR(a.source_options.Validate());
   VD_RETURN_IF_ERROR(a.encode.Validate());
   if (a.has_fps && a.max_rate) return InvalidArgument("--fps and --max-rate exclude each other");
   if (a.has_fps && !(a.fps > 0.0 && a.fps <= 10000.0))
     return InvalidArgument("--fps " + std::to_string(a.fps) + " violates 0 < fps <= 10000");
-  if (!a.lockstep && (a.given.count("--lockstep-timeout") || a.given.count("--lockstep-retries")))
+  if (!a.lockstep && (flags.Given("lockstep-timeout") || flags.Given("lockstep-retries")))
     return InvalidArgument("--lockstep-timeout and --lockstep-retries need --lockstep");
   if (!a.write_dir.empty()) {
     if (a.source.rfind("synthetic:", 0) != 0)
       return InvalidArgument("--write needs a synthetic source (--source synthetic:NAME), got '" + a.source + "'");
-    for (const char* f : {"--start", "--stride", "--loop", "--lockstep", "--intrinsics", "--depth-scale"})
-      if (a.given.count(f)) return InvalidArgument(std::string(f) + " does not apply to --write");
+    for (const char* f : {"start", "stride", "loop", "lockstep", "intrinsics", "depth-scale"})
+      if (flags.Given(f)) return InvalidArgument(std::string("--") + f + " does not apply to --write");
   }
   if (a.source_id.empty()) {
     char host[256] = {0};
@@ -369,7 +282,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (args->help) {
-    std::fputs(vd::kUsage, stdout);
+    std::fputs(args->help_text.c_str(), stdout);
     return 0;
   }
   return vd::Run(*args);

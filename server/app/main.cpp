@@ -24,6 +24,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "vdeform-server: %s\n", s.message().c_str());
     return 2;
   }
+  // Every parameter is checked once, here, before anything starts.
+  if (s = options.Validate(); !s.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", s.message().c_str());
+    return 2;
+  }
   if (options.quiet) vd::SetLogLevel(vd::LogLevel::kWarning);
   if (options.list_devices) {
     auto devices = vd::ocl::ListDevices();

@@ -36,25 +36,12 @@ int RunNode(const ServerOptions& options) {
                  url.c_str(), kLcmRouteHint);
     return 1;
   }
-  auto params = options.ToEngineParams();
-  if (!params.ok()) {
-    std::fprintf(stderr, "vdeform-server: %s\n", params.status().message().c_str());
-    return 2;
-  }
   auto gate = options.ToGateOptions();
   if (!gate.ok()) {
     std::fprintf(stderr, "vdeform-server: %s\n", gate.status().message().c_str());
     return 2;
   }
-  if (options.resume && options.checkpoint_dir.empty()) {
-    std::fprintf(stderr, "vdeform-server: --resume needs --checkpoint DIR\n");
-    return 2;
-  }
-  if (!(options.checkpoint_interval >= 0)) {
-    std::fprintf(stderr, "vdeform-server: --checkpoint-interval must be >= 0\n");
-    return 2;
-  }
-  auto engine = Engine::Create(*params, options.device);
+  auto engine = Engine::Create(options.engine, options.device);
   if (!engine.ok()) {
     std::fprintf(stderr, "vdeform-server: %s\n", engine.status().ToString().c_str());
     return 1;

@@ -53,12 +53,7 @@ int RunOffline(const ServerOptions& options) {
     std::filesystem::create_directories(options.save_dir, ec);
     if (ec) return fail(Unavailable("cannot create --save-dir '" + options.save_dir + "': " + ec.message()));
   }
-  auto params = options.ToEngineParams();
-  if (!params.ok()) {
-    std::fprintf(stderr, "vdeform-server: %s\n", params.status().message().c_str());
-    return 2;
-  }
-  auto engine = Engine::Create(*params, options.device);
+  auto engine = Engine::Create(options.engine, options.device);
   if (!engine.ok()) return fail(engine.status());
   VD_LOG_INFO << "OpenCL device: " << (*engine)->DeviceDescription();
 
@@ -111,7 +106,7 @@ int RunOffline(const ServerOptions& options) {
   if (!options.stats_json.empty()) {
     std::ofstream out(options.stats_json);
     out << "{\"input\": \"" << options.input << "\", \"frames\": " << processed << ", \"tracking_lost\": " << lost
-        << ", \"seconds\": " << secs << ", \"fps\": " << fps << ", \"voxel_size\": " << options.voxel_size
+        << ", \"seconds\": " << secs << ", \"fps\": " << fps << ", \"voxel_size\": " << options.engine.voxel_size
         << ", \"peak_resident_bytes\": " << PeakResidentBytes()
         << ", \"peak_device_bytes\": " << (*engine)->device_peak_bytes() << ", \"device\": \""
         << (*engine)->DeviceDescription() << "\", \"stages\": " << stats.Json() << "}\n";

@@ -3,41 +3,25 @@
 #include <string>
 
 #include "core/engine.h"
-#include "flags.h"
+#include "vd/common/flags.h"
 #include "gate.h"
 #include "vd/capture/source.h"
 
 namespace vd {
 
 struct ServerOptions {
+  // The engine's parameters, bound to their flags directly (EngineParams::Bind): one default, one
+  // help text, validated once by Validate().
+  EngineParams engine;
   // Offline mode: a source spec as for vdeform-capture --source; empty = run the LCM node.
   std::string input;
   std::string intrinsics;
   double depth_scale = 0;
-  double voxel_size = 0.004;
-  double min_depth = 0.2;
-  double max_depth = 3.5;
-  double max_grid_mb = 600.0;
-  double volume_margin = 0.10;
-  // ICP iterations per pyramid level, finest first ("10,5,4").
-  std::string icp_iterations = "10,5,4";
-  double icp_degeneracy = 5e-5;
-  // Non-rigid solver (defaults from EngineParams / SolverParams).
-  int64_t levels = SolverParams().levels;
-  int64_t outer_iterations = EngineParams().nonrigid_outer_iterations;
-  int64_t flip_flop_iterations = SolverParams().flip_flop_iterations;
-  int64_t coarse_iterations = SolverParams().coarse_flip_flop_iterations;
-  int64_t pcg_iterations = SolverParams().pcg_iterations;
-  // Sparse colour features (E_sparse).
-  bool no_sift = false;
-  double w_sparse = FeatureParams().w_sparse;
   int64_t count = -1;
   int64_t start = 0;
   int64_t stride = 1;
   std::string save_dir;
   std::string stats_json;
-  bool rigid_only = false;
-  bool no_bilateral = false;
   // OpenCL device: index or name substring; empty = first GPU, else first CPU device.
   std::string device;
   bool list_devices = false;
@@ -58,8 +42,8 @@ struct ServerOptions {
   bool quiet = false;
 
   void Register(FlagParser* flags);
-  // Fails on malformed --icp-iterations.
-  StatusOr<EngineParams> ToEngineParams() const;
+  // The engine's parameters and the server's own; called once after parsing.
+  Status Validate() const;
   SourceOptions ToSourceOptions() const;
   // Reads the key file and splits accept_sources; fails on an unreadable or weak key.
   StatusOr<GateOptions> ToGateOptions() const;

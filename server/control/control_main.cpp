@@ -11,7 +11,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 
-#include "flags.h"
+#include "vd/common/flags.h"
 #include "vd/common/auth.h"
 #include "vd/common/messages.h"
 
@@ -82,13 +82,13 @@ int main(int argc, char** argv) {
       "  vdeform-control --command reset|snapshot|request-mesh [--path NAME] [--key-file FILE]\n"
       "  vdeform-control --command status     print the server's status as key=value lines (monitoring)\n"
       "Exit status: 0 taken, 1 refused by the server or no server answered within --wait, 2 usage error.");
-  flags.AddString("command", &command, "status (print the server's status), reset (drop the model), snapshot (write meshes, volume and a checkpoint), "
+  flags.Add("command", &command, "status (print the server's status), reset (drop the model), snapshot (write meshes, volume and a checkpoint), "
                                        "request-mesh (republish the current meshes)");
-  flags.AddString("path", &path, "snapshot: a name relative to the server's --snapshot-dir");
-  flags.AddString("key-file", &key_file, "The server's --control-key-file: signs the command with HMAC-SHA256");
-  flags.AddString("sender", &sender, "Who sends it, for the server's log (default vdeform-control@HOSTNAME)");
-  flags.AddString("lcm-url", &lcm_url, "LCM URL (default: $LCM_DEFAULT_URL, else host-only multicast)");
-  flags.AddFloat("wait", &wait, "Seconds to wait for the server's status to confirm (0 = send and exit)");
+  flags.Add("path", &path, "snapshot: a name relative to the server's --snapshot-dir");
+  flags.Add("key-file", &key_file, "The server's --control-key-file: signs the command with HMAC-SHA256");
+  flags.Add("sender", &sender, "Who sends it, for the server's log (default vdeform-control@HOSTNAME)");
+  flags.Add("lcm-url", &lcm_url, "LCM URL (default: $LCM_DEFAULT_URL, else host-only multicast)");
+  flags.Add("wait", &wait, "Seconds to wait for the server's status to confirm (0 = send and exit)");
   bool help = false;
   vd::Status s = flags.Parse(argc, argv, &help);
   if (help) {

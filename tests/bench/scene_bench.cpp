@@ -16,10 +16,10 @@ int main(int argc, char** argv) {
   vd::FlagParser flags("vd_scene_bench: the engine on a synthetic scene against ground truth.\n"
                        "  vd_scene_bench --scene NAME [engine flags as for vdeform-server]");
   options.Register(&flags);
-  flags.AddString("scene", &scene, "Synthetic scene: tube, cloth or rigid");
-  flags.AddInt("frames", &frames, "Frames in one pass of the scene's motion");
-  flags.AddInt("feed-stride", &stride, "Feed every n-th frame (fast motion)");
-  flags.AddBool("verbose", &verbose, "One line per frame");
+  flags.Add("scene", &scene, "Synthetic scene: tube, cloth or rigid");
+  flags.Add("frames", &frames, "Frames in one pass of the scene's motion");
+  flags.Add("feed-stride", &stride, "Feed every n-th frame (fast motion)");
+  flags.AddSwitch("verbose", &verbose, "One line per frame");
   bool help = false;
   vd::Status s = flags.Parse(argc, argv, &help);
   if (help) {
@@ -31,14 +31,13 @@ int main(int argc, char** argv) {
     return 2;
   }
   vd::SetLogLevel(vd::LogLevel::kWarning);
-  auto params = options.ToEngineParams();
-  if (!params.ok()) {
-    std::fprintf(stderr, "vd_scene_bench: %s\n", params.status().ToString().c_str());
+  if (s = options.Validate(); !s.ok()) {
+    std::fprintf(stderr, "vd_scene_bench: %s\n", s.message().c_str());
     return 2;
   }
   vd::test::SceneRun run;
   run.name = scene;
-  run.params = *params;
+  run.params = options.engine;
   run.num_frames = int(frames);
   run.stride = int(stride);
   run.verbose = verbose;

@@ -256,7 +256,7 @@ class NodeCheckpointTest : public ::testing::Test {
  protected:
   void SetUp() override {
     if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
-    options_.voxel_size = 0.008;
+    options_.engine.voxel_size = 0.008f;
     options_.checkpoint_dir = testing::TempDir() + "/vd_node_ckpt";
     options_.checkpoint_interval = 0;
     fs::remove_all(options_.checkpoint_dir);
@@ -267,7 +267,7 @@ class NodeCheckpointTest : public ::testing::Test {
     scene_ = std::move(scene).value();
   }
   std::unique_ptr<Node> MakeNode(lcm::LCM* lcm) {
-    auto engine = Engine::Create(*options_.ToEngineParams(), "");
+    auto engine = Engine::Create(options_.engine, "");
     EXPECT_TRUE(engine.ok());
     auto node = std::make_unique<Node>(options_, lcm, std::move(engine).value());
     lcm->subscribe(kFrameChannel, &Node::OnFrame, node.get());

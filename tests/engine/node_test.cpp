@@ -32,12 +32,11 @@ class NodeTest : public ::testing::Test {
     auto devices = ocl::ListDevices();
     if (!devices.ok() || devices->empty()) GTEST_SKIP() << "no OpenCL device";
     ASSERT_TRUE(lcm_.good());
-    options_.voxel_size = 0.008;
+    options_.engine.voxel_size = 0.008f;
     options_.snapshot_dir = testing::TempDir() + "/vd_node_snapshots";
     std::filesystem::remove_all(options_.snapshot_dir);
-    auto params = options_.ToEngineParams();
-    ASSERT_TRUE(params.ok());
-    auto engine = Engine::Create(*params, "");
+    ASSERT_TRUE(options_.Validate().ok());
+    auto engine = Engine::Create(options_.engine, "");
     ASSERT_TRUE(engine.ok()) << engine.status().ToString();
     node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value());
     lcm_.subscribe(kFrameChannel, &Node::OnFrame, node_.get());

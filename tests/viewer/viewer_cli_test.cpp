@@ -109,7 +109,7 @@ TEST_F(ViewerCliTest, HelpAndBadFlags) {
   EXPECT_NE(help.output.find("--save-dir DIR"), std::string::npos) << help.output;
   const ViewerRun bad = RunViewer("--frobnicate");
   EXPECT_EQ(bad.exit_code, 2);
-  EXPECT_NE(bad.output.find("unknown argument '--frobnicate'"), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("unknown flag --frobnicate"), std::string::npos) << bad.output;
   const ViewerRun png_only = RunViewer("--headless --png");
   EXPECT_EQ(png_only.exit_code, 2);
   EXPECT_NE(png_only.output.find("--png needs --save-dir"), std::string::npos) << png_only.output;

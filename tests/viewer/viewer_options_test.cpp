@@ -67,10 +67,16 @@ TEST(ViewerOptionsTest, BadFlagsNameTheFlag) {
 
 TEST(ViewerOptionsTest, HelpDocumentsEveryFlag) {
   const std::string help = ViewerHelpText();
-  for (const char* flag : {"--lcm-url", "--headless", "--save-dir", "--png ", "--png-size", "--color", "--count",
-                           "--timeout", "--quiet", "--no-request", "--help", "frame-%06d.mesh.ply",
-                           "frame-%06d.canonical.ply", "final.png", "SIGINT"})
-    EXPECT_NE(help.find(flag), std::string::npos) << flag;
+  for (const char* flag : {"--lcm-url URL", "--headless", "--save-dir DIR", "--png", "--png-size WxH", "--color MODE",
+                           "--count N", "--timeout S", "--quiet", "--no-request", "--help"}) {
+    // Each flag starts a line of its own.
+    const bool listed = help.find(std::string("\n  ") + flag + "\n") != std::string::npos ||
+                        help.find(std::string("\n  ") + flag + ",") != std::string::npos;
+    EXPECT_TRUE(listed) << flag;
+  }
+  for (const char* text : {"frame-%06d.mesh.ply", "frame-%06d.canonical.ply", "final.png", "SIGINT", "(default: 640x480)",
+                           "(default: canonical)"})
+    EXPECT_NE(help.find(text), std::string::npos) << text;
 }
 
 TEST(DisplayTest, ParsesDisplayNames) {

@@ -10,6 +10,7 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "vd/common/flags.h"
 #include "vd/common/log.h"
 
 namespace vd {
@@ -34,11 +35,7 @@ VdCamera ScaledCamera(const VdCamera& c, int level) {
   return ToVdCamera(k.Scaled(level));
 }
 
-Status Bad(const char* field, double value, const char* bound) {
-  std::ostringstream os;
-  os << "EngineParams." << field << " = " << value << " violates " << bound;
-  return InvalidArgument(os.str());
-}
+Status Bad(const char* field, double value, const char* bound) { return ParamOutOfBounds("EngineParams", field, value, bound); }
 
 int64_t ProcStatusKb(const char* key) {
   std::ifstream in("/proc/self/status");
@@ -61,6 +58,67 @@ VdPose ToVdPose(const Eigen::Matrix4d& T) {
 
 int64_t ResidentBytes() { return ProcStatusKb("VmRSS:") * 1024; }
 int64_t PeakResidentBytes() { return ProcStatusKb("VmHWM:") * 1024; }
+
+void EngineParams::Bind(FlagParser* f) {
+  f->Section("Volume and fusion");
+  f->Add("voxel-size", &voxel_size, "Grid spacing in metres");
+  f->Add("truncation-voxels", &truncation_voxels, "Truncation band of the TSDF, in voxels");
+  f->Add("max-weight", &max_weight, "Weight cap of the running TSDF average (higher = smoother, slower to follow change)");
+  f->Add("min-depth", &min_depth, "Depth below this many metres is ignored");
+  f->Add("max-depth", &max_depth, "Depth beyond this many metres is ignored");
+  f->Add("max-grid-mb", &max_grid_mb,
+         "Memory the grid may use, MB (12 bytes per point with --rigid-only, 44 with the deformation field)");
+  f->Add("volume-margin", &volume_margin,
+         "Space added around the first frame's points when placing the grid, metres (larger for a moving "
+         "camera that will see more of the scene)");
+  f->AddSwitch("rigid-only", &rigid_only,
+               "Rigid tracking and fusion only: no deformation field (12 instead of 44 bytes per grid point), no "
+               "non-rigid solve");
+  f->Add("k-min", &k_min, "Grid points are fused non-rigidly only after taking part in this many optimisations");
+  f->Section("Depth preprocessing");
+  f->AddNegation("no-bilateral", &bilateral, "Track on the unfiltered depth");
+  f->Add("bilateral-radius", &bilateral_radius, "Radius of the bilateral filter, pixels");
+  f->Add("bilateral-sigma-space", &bilateral_sigma_space_px, "Spatial sigma of the bilateral filter, pixels");
+  f->Add("bilateral-sigma-depth", &bilateral_sigma_depth_m, "Depth sigma of the bilateral filter, metres");
+  f->Add("normal-max-jump", &normal_max_jump, "Normals are dropped across depth jumps above this fraction of the depth");
+  f->Section("Rigid tracking (ICP)");
+  f->AddCustom("icp-iterations", "L0,L1,L2",
+               std::to_string(icp_iterations[0]) + "," + std::to_string(icp_iterations[1]) + "," +
+                   std::to_string(icp_iterations[2]),
+               "Rigid ICP iterations per pyramid level, finest first", [this](const std::string& v) {
+                 const std::string expected = "--icp-iterations expects three counts like 10,5,4, got '" + v + "'";
+                 std::array<int, 3> it{};
+                 size_t n = 0, begin = 0;
+                 for (;;) {
+                   const size_t end = std::min(v.find(',', begin), v.size());
+                   if (n == it.size()) return InvalidArgument(expected);
+                   VD_ASSIGN_OR_RETURN(int64_t x, ParseFlagInteger("icp-iterations", v.substr(begin, end - begin), 0, 100));
+                   it[n++] = int(x);
+                   if (end == v.size()) break;
+                   begin = end + 1;
+                 }
+                 if (n != it.size()) return InvalidArgument(expected);
+                 icp_iterations = it;
+                 return Status::Ok();
+               });
+  f->Add("icp-degeneracy", &icp_degeneracy,
+         "ICP information ratio below which a pose direction is held at the last pose (0 = off)");
+  f->Add("icp-max-distance", &icp_max_distance, "ICP correspondences farther apart than this are rejected, metres");
+  f->Add("icp-max-normal-angle", &icp_max_normal_angle_deg,
+         "ICP correspondences whose normals differ by more than this are rejected, degrees");
+  f->Add("min-inlier-fraction", &min_inlier_fraction,
+         "Tracking fails when fewer than this fraction of the valid pixels are ICP inliers");
+  f->Add("max-frame-translation", &max_frame_translation, "Tracking fails when the pose moves more than this per frame, metres");
+  f->Add("max-frame-rotation", &max_frame_rotation_deg, "Tracking fails when the pose turns more than this per frame, degrees");
+  f->Section("Non-rigid tracking (sections 5-7)");
+  f->Add("outer-iterations", &nonrigid_outer_iterations,
+         "Non-rigid outer iterations per frame (new correspondences each; 0 = rigid tracking with the field kept)");
+  f->Add("corr-eps-d", &corr_eps_d, "Dense correspondences farther apart than this are rejected, metres");
+  f->Add("corr-eps-n", &corr_eps_n, "Dense correspondences whose normals deviate more (1 - cos) are rejected");
+  f->Add("corr-eps-v", &corr_eps_v, "Dense correspondences seen more obliquely (1 - cos) are rejected");
+  solver.Bind(f);
+  features.Bind(f);
+}
 
 Status EngineParams::Validate() const {
   if (!(voxel_size >= 0.0005f && voxel_size <= 0.1f)) return Bad("voxel_size", voxel_size, "0.0005 <= voxel_size <= 0.1 m");

@@ -76,6 +76,9 @@ struct EngineParams {
   // Sparse colour features and E_sparse (section 5.2); used by the non-rigid solve only.
   FeatureParams features;
   Status Validate() const;
+  // Registers a flag for every field (and the solver's and features' ones); the fields' values
+  // now are the defaults --help shows.
+  void Bind(FlagParser* flags);
 };
 
 // The stages of a frame, in the order they are reported (stats, status messages).

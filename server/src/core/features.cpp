@@ -9,13 +9,13 @@
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "vd/common/flags.h"
+
 namespace vd {
 namespace {
 
 Status BadFeature(const char* field, double value, const char* bound) {
-  std::ostringstream os;
-  os << "FeatureParams." << field << " = " << value << " violates " << bound;
-  return InvalidArgument(os.str());
+  return ParamOutOfBounds("FeatureParams", field, value, bound);
 }
 
 // SIFT octave of a keypoint as OpenCV packs it (low byte, signed; -1 = the upsampled octave).
@@ -68,6 +68,38 @@ Status FeatureParams::Validate() const {
   if (!(lift_tolerance > 0.f)) return BadFeature("lift_tolerance", lift_tolerance, "> 0");
   if (!(lift_iterations >= 1 && lift_iterations <= 50)) return BadFeature("lift_iterations", lift_iterations, "1..50");
   return Status::Ok();
+}
+
+void FeatureParams::Bind(FlagParser* f) {
+  f->Section("Sparse colour features (E_sparse, section 5.2)");
+  f->AddNegation("no-sift", &enabled,
+                 "Turn the sparse colour term off: no SIFT features, depth-only non-rigid tracking (for comparisons)");
+  f->Add("w-sparse", &w_sparse, "Weight of the sparse SIFT term E_sparse per match, relative to the dense term");
+  f->Add("sift-max-keypoints", &max_keypoints, "SIFT keypoints with valid depth kept per frame (the strongest)");
+  f->Add("sift-octaves", &octaves, "Octaves of the DoG scale space (from the upsampled one)");
+  f->Add("sift-octave-layers", &octave_layers, "DoG layers per octave");
+  f->Add("sift-contrast-threshold", &contrast_threshold, "DoG contrast threshold of the detector");
+  f->Add("sift-max-orientations", &max_orientations, "Orientations kept per keypoint location and scale");
+  f->Add("sift-max-depth-spread", &max_depth_spread,
+         "A keypoint is dropped when its 3x3 depth neighbourhood spans more than this, metres");
+  f->Add("match-max-pair", &max_pair_matches, "Mutual matches considered per frame pair, by descriptor distance");
+  f->Add("match-keep-per-pair", &keep_per_pair, "Matches kept per frame pair after pruning");
+  f->Add("match-max-descriptor-distance", &prune.max_descriptor_distance, "Matches beyond this SIFT distance are pruned");
+  f->Add("match-max-ratio", &prune.max_ratio, "Lowe ratio: best / second-best distance above this is pruned");
+  f->Add("match-max-screen-distance", &prune.max_screen_distance,
+         "Matches whose predicted pixel is farther than this from the keypoint are pruned, pixels");
+  f->Add("match-max-world-distance", &prune.max_world_distance,
+         "Matches whose predicted point is farther than this from the observed one are pruned, metres");
+  f->Add("history-recent-frames", &recent_frames, "Each frame is matched against this many latest frames ...");
+  f->Add("history-max-keyframes", &max_keyframes, "... and at most this many keyframes spread over the whole history");
+  f->Add("history-keyframe-interval", &keyframe_interval, "A keyframe every this many frames (frame 0 always)");
+  f->Add("history-max-stored-keyframes", &max_stored_keyframes,
+         "Keyframes stored at most (bounds memory on long runs); beyond it every second one is dropped");
+  f->Add("sparse-pose-huber", &pose_huber, "Huber threshold of a match's residual in the global pose, metres");
+  f->Add("lift-max-depth-gap", &lift_max_depth_gap,
+         "A keypoint is lifted only where the rendered surface is within this of its depth, metres");
+  f->Add("lift-tolerance", &lift_tolerance, "Newton on S(g) = f stops at this residual, metres");
+  f->Add("lift-iterations", &lift_iterations, "Newton iterations of the lift at most");
 }
 
 StatusOr<FrameFeatures> ExtractFeatures(const RgbdFrame& frame, const FeatureParams& params, float min_depth,

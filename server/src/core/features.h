@@ -18,6 +18,8 @@
 
 namespace vd {
 
+class FlagParser;
+
 struct FeatureParams {
   // E_sparse on (the server's --no-sift turns it off for comparisons).
   bool enabled = true;
@@ -62,6 +64,8 @@ struct FeatureParams {
   float lift_tolerance = 1e-4f;
   int lift_iterations = 8;
   Status Validate() const;
+  // Registers a flag for every field; the fields' values now are the defaults --help shows.
+  void Bind(FlagParser* flags);
 };
 
 // One frame's features. Keypoint i: pixel (u, v), its observed point in that frame's camera

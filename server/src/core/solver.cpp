@@ -3,18 +3,32 @@
 #include <cmath>
 #include <sstream>
 
+#include "vd/common/flags.h"
+
 namespace vd {
 namespace {
 // Elements per work item of the partial sums.
 constexpr int kChunk = 256;
 }  // namespace
 
+void SolverParams::Bind(FlagParser* f) {
+  f->Add("w-dense", &w_dense, "Weight w_d of the dense point-to-plane term (paper eq. 1)");
+  f->Add("w-reg", &w_reg, "Weight w_r of the as-rigid-as-possible prior (paper eq. 1)");
+  f->Add("damping", &damping, "Damping towards the current positions, relative to w_reg");
+  f->Add("levels", &levels, "Levels of the non-rigid solver's coarse-to-fine hierarchy (1 = fine grid only)");
+  f->Add("flip-flop-iterations", &flip_flop_iterations, "Flip-flop iterations on the fine level per outer iteration");
+  f->Add("coarse-iterations", &coarse_flip_flop_iterations,
+         "Flip-flop iterations on each coarse level per outer iteration");
+  f->Add("pcg-iterations", &pcg_iterations, "PCG iterations per position step (at most)");
+  f->Add("pcg-tolerance", &pcg_tolerance, "Relative residual at which PCG stops early");
+  f->AddNegation("no-btb-cache-coarse", &cache_btb_coarse,
+                 "Apply B^T B from the constraints on the coarse levels instead of caching its blocks");
+  f->AddNegation("no-btb-cache-fine", &cache_btb_fine,
+                 "Apply B^T B from the constraints on the fine level instead of caching its blocks");
+}
+
 Status SolverParams::Validate() const {
-  auto bad = [](const char* f, double v, const char* b) {
-    std::ostringstream os;
-    os << "SolverParams." << f << " = " << v << " violates " << b;
-    return InvalidArgument(os.str());
-  };
+  auto bad = [](const char* f, double v, const char* b) { return ParamOutOfBounds("SolverParams", f, v, b); };
   if (!(w_dense > 0.f && w_dense < 1e6f)) return bad("w_dense", w_dense, "0 < w_dense < 1e6");
   if (!(w_reg > 0.f && w_reg < 1e6f)) return bad("w_reg", w_reg, "0 < w_reg < 1e6");
   if (!(damping > 0.f && damping < 1.f)) return bad("damping", damping, "0 < damping < 1");

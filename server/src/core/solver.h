@@ -10,6 +10,8 @@
 
 namespace vd {
 
+class FlagParser;
+
 struct SolverParams {
   // Weights of the dense point-to-plane term and the ARAP prior (paper eq. 1).
   float w_dense = 1.f;
@@ -31,6 +33,8 @@ struct SolverParams {
   int pcg_iterations = 20;
   float pcg_tolerance = 1e-4f;
   Status Validate() const;
+  // Registers a flag for every field; the fields' values now are the defaults --help shows.
+  void Bind(FlagParser* flags);
 };
 
 struct SolverSummary {
