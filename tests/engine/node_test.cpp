@@ -1,13 +1,16 @@
 // The server node driven in-process over LCM's memq:// provider: bad frames are rejected with a
 // reason and never reach the model, good frames are processed and answered with meshes and
-// status, stale frames are ignored, snapshot paths stay inside the snapshot directory.
+// status, stale frames are ignored, snapshot paths stay inside the snapshot directory and the
+// snapshot's model is a checkpoint.
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
 
+#include "core/checkpoint.h"
 #include "node.h"
 #include "ocl/ocl.h"
+#include "snapshot.h"
 #include "vd/capture/synthetic.h"
 
 namespace vd {
@@ -157,9 +160,17 @@ TEST_F(NodeTest, SnapshotStaysInsideItsDirectoryAndMeshRequestRepublishes) {
   Pump();
   node_->RunOnce();
   EXPECT_FALSE(std::filesystem::exists(options_.snapshot_dir + "/../escape"));
-  EXPECT_TRUE(std::filesystem::exists(options_.snapshot_dir + "/snap1/live.ply"));
-  EXPECT_TRUE(std::filesystem::exists(options_.snapshot_dir + "/snap1/volume.bin"));
-  EXPECT_FALSE(std::filesystem::exists(options_.snapshot_dir + "/snap1/volume.bin.tmp"));
+  const std::string snap = options_.snapshot_dir + "/snap1/";
+  EXPECT_TRUE(std::filesystem::exists(snap + kSnapshotLiveFile));
+  EXPECT_TRUE(std::filesystem::exists(snap + kSnapshotCanonicalFile));
+  // The model in the checkpoint format (versioned, SHA-256), read by the checkpoint reader.
+  auto model = ReadCheckpoint(snap + kCheckpointFile);
+  ASSERT_TRUE(model.ok()) << model.status().ToString();
+  EXPECT_EQ(model->frames_fused, 1);
+  EXPECT_EQ(model->last_seq, 0);
+  EXPECT_EQ(model->source_id, "test");
+  EXPECT_GT(model->tsdf.size(), 0u);
+  EXPECT_FALSE(std::filesystem::exists(snap + kCheckpointFile + ".tmp"));
 
   const size_t before = inbox_.meshes.size();
   c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
