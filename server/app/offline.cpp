@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "server_options.h"
+#include "offline.h"
 #include "stats.h"
 #include "vd/common/codecs.h"
 #include "vd/common/log.h"
@@ -36,6 +36,16 @@ std::string FramePath(const std::string& dir, int64_t index, const char* suffix)
 
 }  // namespace
 
+SourceOptions ToSourceOptions(const ServerOptions& options) {
+  SourceOptions s;
+  s.intrinsics = options.intrinsics;
+  s.depth_scale = float(options.depth_scale);
+  s.start = options.start;
+  s.count = options.count;
+  s.stride = int(options.stride);
+  return s;
+}
+
 int RunOffline(const ServerOptions& options) {
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
@@ -43,7 +53,7 @@ int RunOffline(const ServerOptions& options) {
     std::fprintf(stderr, "vdeform-server: %s\n", s.ToString().c_str());
     return 1;
   };
-  const SourceOptions source_options = options.ToSourceOptions();
+  const SourceOptions source_options = ToSourceOptions(options);
   if (Status s = source_options.Validate(); !s.ok()) return fail(s);
   auto source = OpenSource(options.input, source_options);
   if (!source.ok()) return fail(source.status());

@@ -1,4 +1,4 @@
-// vdeform-server's flags and their translation into engine and source parameters.
+// vdeform-server's flags and their translation into engine and gate parameters.
 #include "server_options.h"
 
 #include <algorithm>
@@ -107,16 +107,6 @@ StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
     g.control_key = std::move(key).value();
   }
   return g;
-}
-
-SourceOptions ServerOptions::ToSourceOptions() const {
-  SourceOptions s;
-  s.intrinsics = intrinsics;
-  s.depth_scale = float(depth_scale);
-  s.start = start;
-  s.count = count;
-  s.stride = int(stride);
-  return s;
 }
 
 }  // namespace vd
