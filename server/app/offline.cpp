@@ -46,6 +46,10 @@ SourceOptions ToSourceOptions(const ServerOptions& options) {
   return s;
 }
 
+int64_t SourceFrameIndex(const SourceOptions& options, int64_t delivered) {
+  return options.start + delivered * options.stride;
+}
+
 int RunOffline(const ServerOptions& options) {
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
@@ -76,13 +80,19 @@ int RunOffline(const ServerOptions& options) {
   const int64_t total = (*source)->NumFrames();
   const bool tty = isatty(fileno(stderr));
   int64_t processed = 0, lost = 0;
+  // Frames taken from the source so far; names the output files by their index in the source.
+  int64_t delivered = 0;
   const auto t_start = std::chrono::steady_clock::now();
   // One frame of look-ahead: its features are detected while the current frame is solved.
   auto next = (*source)->Next();
   while (!g_stop) {
-    if (!next.ok()) return fail(next.status().WithContext("reading frame " + std::to_string(processed)));
+    if (!next.ok()) {
+      const int64_t index = SourceFrameIndex(source_options, delivered);
+      return fail(next.status().WithContext("reading frame " + std::to_string(index)));
+    }
     if (!next->has_value()) break;
     const RgbdFrame frame = std::move(**next);
+    const int64_t index = SourceFrameIndex(source_options, delivered++);
     next = (*source)->Next();
     if (next.ok() && next->has_value()) (*engine)->Prefetch(**next);
     const auto t0 = std::chrono::steady_clock::now();
@@ -92,12 +102,12 @@ int RunOffline(const ServerOptions& options) {
     stats.Add(result->times, ms);
     if (!result->tracking_ok) {
       ++lost;
-      VD_LOG_WARNING << "frame " << processed << ": " << result->tracking_message;
+      VD_LOG_WARNING << "frame " << index << ": " << result->tracking_message;
     }
     if (!options.save_dir.empty()) {
-      Status s = WritePly(FramePath(options.save_dir, processed, "mesh.ply"), result->live_mesh);
-      if (s.ok()) s = WritePly(FramePath(options.save_dir, processed, "canonical.ply"), result->canonical_mesh);
-      if (s.ok()) s = WritePose(FramePath(options.save_dir, processed, "pose.txt"), result->pose);
+      Status s = WritePly(FramePath(options.save_dir, index, "mesh.ply"), result->live_mesh);
+      if (s.ok()) s = WritePly(FramePath(options.save_dir, index, "canonical.ply"), result->canonical_mesh);
+      if (s.ok()) s = WritePose(FramePath(options.save_dir, index, "pose.txt"), result->pose);
       if (!s.ok()) return fail(s);
     }
     ++processed;

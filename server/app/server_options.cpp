@@ -36,7 +36,8 @@ void ServerOptions::Register(FlagParser* f) {
   f->AddInt("stride", &stride, "Offline mode: use every n-th frame");
   f->AddString("save-dir", &save_dir,
                "Offline mode: write frame-%06d.mesh.ply (live, camera coordinates), frame-%06d.canonical.ply and "
-               "frame-%06d.pose.txt (camera-to-world) per frame");
+               "frame-%06d.pose.txt (camera-to-world) per frame, numbered by the frame's index in the source "
+               "(--start 3 --stride 2: 3, 5, 7, ...)");
   f->AddString("stats-json", &stats_json, "Offline mode: write per-stage timing statistics, fps and peak memory");
   f->AddBool("rigid-only", &rigid_only,
              "Rigid tracking and fusion only: no deformation field (12 instead of 44 bytes per grid point), no "
