@@ -1,9 +1,11 @@
 #include "node.h"
 
+#include <cerrno>
 #include <chrono>
 #include <condition_variable>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <map>
 #include <mutex>
@@ -97,6 +99,27 @@ class Node::Impl {
       default:
         break;  // the gate refuses unknown commands
     }
+  }
+
+  Status Serve(const std::atomic<bool>* stop) {
+    // The worker also stops when receiving fails, which *stop (the caller's) does not say.
+    std::atomic<bool> done{false};
+    std::thread worker([&] { Work(&done); });
+    Status status = Status::Ok();
+    while (!*stop) {
+      errno = 0;
+      // select() returns EINTR when a signal arrives while it waits: a SIGINT or SIGTERM that sets
+      // *stop, or any other handled signal; neither is a failure of LCM.
+      if (lcm_->handleTimeout(50) < 0 && errno != EINTR) {
+        status = Unavailable(std::string("LCM receive failed: ") + (errno ? std::strerror(errno) : "lcm_handle"));
+        break;
+      }
+      Tick();
+    }
+    done = true;
+    worker.join();
+    MaybeCheckpoint(CheckpointTrigger::kShutdown);
+    return status;
   }
 
   void Work(const std::atomic<bool>* stop) {
@@ -437,6 +460,7 @@ Node::~Node() = default;
 
 void Node::OnFrame(const lcm::ReceiveBuffer* rbuf, const std::string&) { impl_->OnFrame(rbuf); }
 void Node::OnControl(const lcm::ReceiveBuffer* rbuf, const std::string&) { impl_->OnControl(rbuf); }
+Status Node::Serve(const std::atomic<bool>* stop) { return impl_->Serve(stop); }
 void Node::Work(const std::atomic<bool>* stop) { impl_->Work(stop); }
 bool Node::RunOnce() { return impl_->RunOnce(); }
 void Node::Tick() { impl_->Tick(); }
@@ -489,17 +513,12 @@ int RunNode(const ServerOptions& options) {
   if (options.resume) node.Resume();
   lcm.subscribe(kFrameChannel, &Node::OnFrame, &node);
   lcm.subscribe(kControlChannel, &Node::OnControl, &node);
-  std::thread worker([&] { node.Work(&g_stop); });
-  while (!g_stop) {
-    if (lcm.handleTimeout(50) < 0) {
-      VD_LOG_ERROR << "LCM receive failed; stopping";
-      g_stop = true;
-    }
-    node.Tick();
-  }
-  worker.join();
-  node.MaybeCheckpoint(CheckpointTrigger::kShutdown);
+  const Status served = node.Serve(&g_stop);
   node.PrintSummary();
+  if (!served.ok()) {
+    VD_LOG_ERROR << served.message() << "; stopped";
+    return 1;
+  }
   return 0;
 }
 

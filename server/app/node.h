@@ -29,6 +29,10 @@ class Node {
   void OnFrame(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
   void OnControl(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
 
+  // Serves until *stop: a worker thread runs Work, this thread receives and calls Tick; then the
+  // shutdown checkpoint. A receive interrupted by a signal (Ctrl-C) is not an error; a failed
+  // one stops serving and is returned.
+  Status Serve(const std::atomic<bool>* stop);
   // Worker: runs the engine on the newest frame until *stop.
   void Work(const std::atomic<bool>* stop);
   // One step of the worker: a pending reset, snapshots, then the waiting frame. Returns whether a
