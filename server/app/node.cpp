@@ -31,15 +31,6 @@ double MsSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
-// What the last processed frame reported, for the status.
-struct FrameReport {
-  int32_t dense = 0;
-  int32_t sparse = 0;
-  float energy_initial = 0.f;
-  float energy_final = 0.f;
-  int64_t active_voxels = 0;
-};
-
 }  // namespace
 
 int64_t NowUs() {
@@ -293,11 +284,11 @@ class Node::Impl {
         const double span = std::chrono::duration<double>(process_times_.back() - process_times_.front()).count();
         if (span > 0) st.fps = float((process_times_.size() - 1) / span);
       }
-      st.active_voxels = report_.active_voxels;
-      st.dense_correspondences = report_.dense;
-      st.sparse_correspondences = report_.sparse;
-      st.energy_initial = report_.energy_initial;
-      st.energy_final = report_.energy_final;
+      st.active_voxels = active_voxels_;
+      st.dense_correspondences = dense_;
+      st.sparse_correspondences = sparse_;
+      st.energy_initial = energy_initial_;
+      st.energy_final = energy_final_;
       st.resident_memory_bytes = ResidentBytes();
       last_status_ = Clock::now();
     }
@@ -345,8 +336,11 @@ class Node::Impl {
     while (process_times_.size() > 30) process_times_.pop_front();
     state_ = result->tracking_ok ? vdeform::server_status_t::STATE_TRACKING : vdeform::server_status_t::STATE_TRACKING_LOST;
     message_ = result->tracking_ok ? engine_->DeviceDescription() : result->tracking_message;
-    report_ = FrameReport{result->dense_correspondences, result->sparse_matches, float(result->energy_initial),
-                          float(result->energy_final), result->active_voxels};
+    dense_ = result->dense_correspondences;
+    sparse_ = result->sparse_matches;
+    energy_initial_ = float(result->energy_initial);
+    energy_final_ = float(result->energy_final);
+    active_voxels_ = result->active_voxels;
     KeepMeshes(*result, frame.seq);
     lock.unlock();
     PublishMeshes(false);
@@ -410,9 +404,11 @@ class Node::Impl {
     MaybeCheckpoint(CheckpointTrigger::kSnapshot, saved);
   }
 
+  // Borrowed from the caller, which validated them once at start-up.
   const ServerOptions& options_;
   // Borrowed from the caller; publishing is thread-safe in LCM.
   lcm::LCM* lcm_;
+  // Run by the worker; the receive thread only calls Prefetch, which is made to run beside Process.
   std::unique_ptr<Engine> engine_;
   // Guards everything below: the receive thread (handlers, Tick) and the worker share it.
   mutable std::mutex mutex_;
@@ -424,7 +420,9 @@ class Node::Impl {
   bool reset_requested_ = false;
   bool mesh_requested_ = false;
   std::vector<std::string> snapshot_requests_;
+  // Decides about every message before it reaches the engine; counts what it received.
   FrameGate gate_;
+  // Decides when the worker writes a checkpoint.
   CheckpointScheduler scheduler_;
   // Frames received are counted by the gate; these are what became of them after it.
   int64_t processed_ = 0, dropped_ = 0, rejected_ = 0;
@@ -439,12 +437,21 @@ class Node::Impl {
   // The newest frame in the model; a resumed model continues the sequence.
   int64_t last_processed_seq_ = -1;
   std::string last_source_id_;
+  // What the status says the server is doing, and why (device, tracking failure, bad frame).
   int8_t state_ = vdeform::server_status_t::STATE_IDLE;
   std::string message_ = "waiting for frames";
+  // Stage times of every processed frame, for the status and the summary at exit.
   StageStats stats_;
   // Completion times of the last 30 frames, for the frame rate.
   std::deque<Clock::time_point> process_times_;
-  FrameReport report_;
+  // The last frame's solve, for a monitor: depth correspondences and SIFT matches (none of either
+  // means the solve ran on regularity alone), the energy before and after (a rise means it
+  // diverged), the grid points near the surface (what the solve and memory scale with).
+  int32_t dense_ = 0;
+  int32_t sparse_ = 0;
+  float energy_initial_ = 0.f;
+  float energy_final_ = 0.f;
+  int64_t active_voxels_ = 0;
   // Encoded once per frame, republished on REQUEST_MESH to viewers that join late.
   std::optional<vdeform::mesh_t> last_live_, last_canonical_;
   // The canonical mesh is large: sent at most once a second, and only when it changed.
