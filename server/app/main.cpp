@@ -2,7 +2,9 @@
 // set (--input).
 #include <cstdio>
 
+#include "node.h"
 #include "ocl/ocl.h"
+#include "offline.h"
 #include "server_options.h"
 #include "vd/common/log.h"
 

@@ -1,14 +1,35 @@
-// The LCM node's entry point and helpers; the Node class is in node.h.
 #include "node.h"
 
+#include <cerrno>
+#include <chrono>
+#include <condition_variable>
 #include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <deque>
+#include <map>
+#include <mutex>
+#include <optional>
 #include <thread>
+#include <vector>
+
+#include "core/checkpoint.h"
+#include "snapshot.h"
+#include "stats.h"
+#include "vd/common/log.h"
+#include "vd/common/messages.h"
 
 namespace vd {
 namespace {
 
+using Clock = std::chrono::steady_clock;
+
 std::atomic<bool> g_stop{false};
 void OnSignal(int) { g_stop = true; }
+
+double MsSince(Clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
 
 }  // namespace
 
@@ -16,14 +37,446 @@ int64_t NowUs() {
   return std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
 
-StatusOr<std::filesystem::path> SnapshotPath(const std::string& dir, const std::string& name) {
-  if (name.empty()) return InvalidArgument("empty snapshot name");
-  const std::filesystem::path rel(name);
-  if (rel.is_absolute()) return InvalidArgument("snapshot path '" + name + "' is absolute");
-  for (const auto& part : rel)
-    if (part == "..") return InvalidArgument("snapshot path '" + name + "' leaves the snapshot directory");
-  return std::filesystem::path(dir) / rel;
-}
+class Node::Impl {
+ public:
+  Impl(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate)
+      : options_(options),
+        lcm_(lcm),
+        engine_(std::move(engine)),
+        gate_(std::move(gate)),
+        scheduler_(!options.checkpoint_dir.empty(), options.checkpoint_interval, Clock::now()) {}
+
+  void OnFrame(const lcm::ReceiveBuffer* rbuf) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    FrameDecision d = gate_.OnFrame(rbuf->data, rbuf->data_size);
+    switch (d.verdict) {
+      case FrameVerdict::kRejected:
+        return Reject(d.status, d.reason);
+      case FrameVerdict::kStale:
+        // Re-sent or reordered: an older view of the scene than the model already holds.
+        return;
+      case FrameVerdict::kForeign:
+        if (gate_.counters().foreign == 1) VD_LOG_WARNING << "ignoring frames: " << d.status.message();
+        return;
+      case FrameVerdict::kAccept:
+        break;
+    }
+    if (mailbox_) ++dropped_;
+    mailbox_ = std::move(d.frame);
+    // Feature detection starts now, beside the frame the worker may be solving.
+    engine_->Prefetch(*mailbox_);
+    cv_.notify_one();
+  }
+
+  void OnControl(const lcm::ReceiveBuffer* rbuf) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    ControlDecision d = gate_.OnControl(rbuf->data, rbuf->data_size, NowUs());
+    if (!d.status.ok()) {
+      VD_LOG_WARNING << "control command refused (from '" << d.msg.sender << "'): " << d.status.ToString();
+      return;
+    }
+    switch (d.msg.command) {
+      case vdeform::control_t::COMMAND_RESET:
+        reset_requested_ = true;
+        cv_.notify_one();
+        break;
+      case vdeform::control_t::COMMAND_SAVE_SNAPSHOT:
+        snapshot_requests_.push_back(d.msg.path);
+        cv_.notify_one();
+        break;
+      case vdeform::control_t::COMMAND_REQUEST_MESH:
+        mesh_requested_ = true;
+        break;
+      default:
+        break;  // the gate refuses unknown commands
+    }
+  }
+
+  Status Serve(const std::atomic<bool>* stop) {
+    // The worker also stops when receiving fails, which *stop (the caller's) does not say.
+    std::atomic<bool> done{false};
+    std::thread worker([&] { Work(&done); });
+    Status status = Status::Ok();
+    while (!*stop) {
+      errno = 0;
+      // select() returns EINTR when a signal arrives while it waits: a SIGINT or SIGTERM that sets
+      // *stop, or any other handled signal; neither is a failure of LCM.
+      if (lcm_->handleTimeout(50) < 0 && errno != EINTR) {
+        status = Unavailable(std::string("LCM receive failed: ") + (errno ? std::strerror(errno) : "lcm_handle"));
+        break;
+      }
+      Tick();
+    }
+    done = true;
+    worker.join();
+    MaybeCheckpoint(CheckpointTrigger::kShutdown);
+    return status;
+  }
+
+  void Work(const std::atomic<bool>* stop) {
+    while (!*stop) {
+      {
+        std::unique_lock<std::mutex> lock(mutex_);
+        cv_.wait_for(lock, std::chrono::milliseconds(100),
+                     [&] { return mailbox_.has_value() || reset_requested_ || !snapshot_requests_.empty() || *stop; });
+      }
+      RunOnce();
+    }
+  }
+
+  bool RunOnce() {
+    MaybeCheckpoint(CheckpointTrigger::kInterval);
+    std::optional<RgbdFrame> frame;
+    bool reset = false;
+    std::vector<std::string> snapshots;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      frame.swap(mailbox_);
+      reset = reset_requested_;
+      reset_requested_ = false;
+      snapshots.swap(snapshot_requests_);
+    }
+    if (reset) {
+      engine_->Reset();
+      std::lock_guard<std::mutex> lock(mutex_);
+      last_live_.reset();
+      last_canonical_.reset();
+      model_frames_ = 0;
+      state_ = vdeform::server_status_t::STATE_IDLE;
+      message_ = "reset";
+      VD_LOG_INFO << "model reset";
+    }
+    for (const auto& name : snapshots) Snapshot(name);
+    if (frame) Process(*frame);
+    return frame.has_value();
+  }
+
+  void Tick() {
+    bool send_meshes = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      send_meshes = mesh_requested_;
+      mesh_requested_ = false;
+    }
+    if (send_meshes) PublishMeshes(true);
+    if (Clock::now() - last_status_ > std::chrono::milliseconds(500)) PublishStatus();
+  }
+
+  bool Resume() {
+    ResumeResult r = LoadLatestCheckpoint(options_.checkpoint_dir);
+    std::string problems;
+    for (const auto& p : r.problems) {
+      VD_LOG_ERROR << "checkpoint refused: " << p;
+      problems += (problems.empty() ? "" : "; ") + p;
+    }
+    if (!r.state) {
+      if (r.problems.empty()) VD_LOG_INFO << "no checkpoint in '" << options_.checkpoint_dir << "'; starting a new model";
+      std::lock_guard<std::mutex> lock(mutex_);
+      checkpoint_message_ = problems.empty() ? "" : "resume failed: " + problems;
+      return r.problems.empty();
+    }
+    FrameResult meshes;
+    Status s = engine_->RestoreState(*r.state, &meshes);
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!s.ok()) {
+      VD_LOG_ERROR << "cannot resume from " << r.loaded_path << ": " << s.ToString();
+      checkpoint_message_ = "resume failed: " + s.message();
+      return false;
+    }
+    model_frames_ = r.state->frames_fused;
+    last_processed_seq_ = r.state->last_seq;
+    last_source_id_ = r.state->source_id;
+    KeepMeshes(meshes, r.state->last_seq);
+    state_ = vdeform::server_status_t::STATE_TRACKING;
+    message_ = "resumed";
+    checkpoint_message_ = "resumed from " + r.loaded_path + (problems.empty() ? "" : " after refusing: " + problems);
+    VD_LOG_INFO << "resumed " << model_frames_ << " fused frames from " << r.loaded_path << " ("
+                << meshes.live_mesh.num_triangles() << " triangles)";
+    return problems.empty();
+  }
+
+  // `saved`: the model as SaveModel took it just now (a snapshot's), written instead of a second
+  // download of the volume.
+  void MaybeCheckpoint(CheckpointTrigger trigger, const EngineState* saved = nullptr) {
+    const auto now = Clock::now();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!scheduler_.Due(trigger, engine_->has_model(), now)) return;
+    }
+    std::optional<StatusOr<EngineState>> taken;
+    if (!saved) {
+      taken = SaveModel();
+      if (taken->ok()) saved = &taken->value();
+    }
+    size_t bytes = 0;
+    const Status s = saved ? WriteCheckpoint(options_.checkpoint_dir, *saved, &bytes) : taken->status();
+    const double ms = MsSince(now);
+    std::lock_guard<std::mutex> lock(mutex_);
+    scheduler_.Attempted(now, s.ok());
+    if (!s.ok()) {
+      checkpoint_message_ = "checkpoint failed: " + s.message();
+      VD_LOG_ERROR << checkpoint_message_;
+      return;
+    }
+    checkpoint_utime_ = NowUs();
+    ++checkpoints_written_;
+    checkpoint_message_ = "checkpoint of " + std::to_string(model_frames_) + " frames, " + std::to_string(bytes >> 10) +
+                          " KiB, " + std::to_string(int(ms)) + " ms";
+    VD_LOG_DEBUG << checkpoint_message_;
+  }
+
+  int64_t checkpoints_written() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return checkpoints_written_;
+  }
+  GateCounters gate_counters() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return gate_.counters();
+  }
+
+  void PrintSummary() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const GateCounters& g = gate_.counters();
+    std::printf("vdeform-server: received %lld, processed %lld, dropped %lld, rejected %lld, duplicate %lld, "
+                "reordered %lld, lost %lld, foreign %lld frames; %lld control commands refused\n",
+                (long long)g.received, (long long)processed_, (long long)dropped_, (long long)rejected_,
+                (long long)g.duplicates, (long long)g.reordered, (long long)g.lost, (long long)g.foreign,
+                (long long)g.control_refused);
+    if (stats_.count()) std::printf("stages (mean ms): %s\n", stats_.Summary().c_str());
+  }
+
+  void PublishStatus() {
+    vdeform::server_status_t st;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      st.utime = NowUs();
+      st.state = state_;
+      st.message = message_;
+      st.frames_received = gate_.counters().received;
+      st.frames_processed = processed_;
+      st.frames_dropped = dropped_;
+      st.frames_rejected = rejected_;
+      for (const auto& [reason, n] : reject_counts_) {
+        st.reject_reason.push_back(reason);
+        st.reject_count.push_back(n);
+      }
+      st.num_reject_reasons = int32_t(st.reject_reason.size());
+      const GateCounters& g = gate_.counters();
+      st.frames_duplicate = g.duplicates;
+      st.frames_reordered = g.reordered;
+      st.frames_lost = g.lost;
+      st.frames_foreign = g.foreign;
+      st.source_restarts = g.source_restarts;
+      st.control_refused = g.control_refused;
+      st.model_frames = model_frames_;
+      st.checkpoint_utime = checkpoint_utime_;
+      st.checkpoint_message = checkpoint_message_;
+      st.last_processed_seq = last_processed_seq_;
+      st.last_source_id = last_source_id_;
+      for (int s = 0; s < StageTimes::kCount; ++s) {
+        st.stage_name.push_back(StageTimes::kNames[s]);
+        st.stage_ms_last.push_back(float(stats_.count() ? stats_.last().ms[s] : 0.0));
+        st.stage_ms_mean.push_back(float(stats_.Mean(s)));
+      }
+      st.num_stages = StageTimes::kCount;
+      st.fps = 0.f;
+      if (process_times_.size() >= 2) {
+        const double span = std::chrono::duration<double>(process_times_.back() - process_times_.front()).count();
+        if (span > 0) st.fps = float((process_times_.size() - 1) / span);
+      }
+      st.active_voxels = active_voxels_;
+      st.dense_correspondences = dense_;
+      st.sparse_correspondences = sparse_;
+      st.energy_initial = energy_initial_;
+      st.energy_final = energy_final_;
+      st.resident_memory_bytes = ResidentBytes();
+      last_status_ = Clock::now();
+    }
+    lcm_->publish(kStatusChannel, &st);
+  }
+
+ private:
+  // Counts a refused frame under `reason` (derived from the error when empty); logs each reason once.
+  void Reject(const Status& s, const std::string& given_reason = "") {
+    ++rejected_;
+    const std::string reason = given_reason.empty() ? RejectReason(s) : given_reason;
+    if (reject_counts_[reason]++ == 0) VD_LOG_WARNING << "rejected a frame (" << reason << "): " << s.ToString();
+  }
+
+  // Encodes the meshes of `result` for publishing; called with mutex_ held.
+  void KeepMeshes(const FrameResult& result, int64_t seq) {
+    auto live = MeshToMessage(result.live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE);
+    auto canonical = MeshToMessage(result.canonical_mesh, NowUs(), seq, vdeform::mesh_t::KIND_CANONICAL);
+    if (live.ok()) last_live_ = std::move(live).value();
+    else VD_LOG_WARNING << "cannot encode live mesh: " << live.status().ToString();
+    if (canonical.ok()) last_canonical_ = std::move(canonical).value();
+    canonical_changed_ = true;
+  }
+
+  void Process(const RgbdFrame& frame) {
+    const auto t0 = Clock::now();
+    auto result = engine_->Process(frame);
+    const double ms = MsSince(t0);
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (!result.ok()) {
+      // Bad input the validation could not see (e.g. a size change): counted, the model kept.
+      Reject(result.status());
+      message_ = result.status().ToString();
+      return;
+    }
+    ++processed_;
+    if (result->tracking_ok) {
+      ++model_frames_;
+      scheduler_.ModelChanged();
+    }
+    last_processed_seq_ = frame.seq;
+    last_source_id_ = frame.source_id;
+    stats_.Add(result->times, ms);
+    process_times_.push_back(Clock::now());
+    while (process_times_.size() > 30) process_times_.pop_front();
+    state_ = result->tracking_ok ? vdeform::server_status_t::STATE_TRACKING : vdeform::server_status_t::STATE_TRACKING_LOST;
+    message_ = result->tracking_ok ? engine_->DeviceDescription() : result->tracking_message;
+    dense_ = result->dense_correspondences;
+    sparse_ = result->sparse_matches;
+    energy_initial_ = float(result->energy_initial);
+    energy_final_ = float(result->energy_final);
+    active_voxels_ = result->active_voxels;
+    KeepMeshes(*result, frame.seq);
+    lock.unlock();
+    PublishMeshes(false);
+    PublishStatus();
+  }
+
+  // The live mesh always; the canonical one when it changed, at most once a second, or on request.
+  void PublishMeshes(bool force_canonical) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (last_live_) lcm_->publish(kMeshChannel, &*last_live_);
+    const auto now = Clock::now();
+    if (last_canonical_ && (force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1)))) {
+      lcm_->publish(kMeshChannel, &*last_canonical_);
+      last_canonical_sent_ = now;
+      canonical_changed_ = false;
+    }
+  }
+
+  // The engine's model with the sequence number and source of the last frame in it.
+  StatusOr<EngineState> SaveModel() {
+    EngineState state;
+    VD_RETURN_IF_ERROR(engine_->SaveState(&state));
+    std::lock_guard<std::mutex> lock(mutex_);
+    state.last_seq = last_processed_seq_;
+    state.source_id = last_source_id_;
+    return state;
+  }
+
+  // SAVE_SNAPSHOT: the meshes and the model below --snapshot-dir, then a checkpoint of the same
+  // model (also when the name is refused: the command still asks for the model to be kept).
+  void Snapshot(const std::string& name) {
+    auto path = SnapshotPath(options_.snapshot_dir, name);
+    if (!path.ok()) {
+      VD_LOG_WARNING << "SAVE_SNAPSHOT refused: " << path.status().message();
+      return MaybeCheckpoint(CheckpointTrigger::kSnapshot);
+    }
+    std::optional<vdeform::mesh_t> live, canonical;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      live = last_live_;
+      canonical = last_canonical_;
+    }
+    Status s = Status::Ok();
+    std::optional<TriangleMesh> live_mesh, canonical_mesh;
+    auto decode = [&](const std::optional<vdeform::mesh_t>& m, std::optional<TriangleMesh>* out) {
+      if (!s.ok() || !m) return;
+      auto mesh = MessageToMesh(*m);
+      if (mesh.ok()) *out = std::move(mesh).value();
+      else s = mesh.status();
+    };
+    decode(live, &live_mesh);
+    decode(canonical, &canonical_mesh);
+    std::optional<StatusOr<EngineState>> model;
+    if (engine_->has_model()) model = SaveModel();
+    const EngineState* saved = model && model->ok() ? &model->value() : nullptr;
+    if (s.ok())
+      s = WriteSnapshot(*path, live_mesh ? &*live_mesh : nullptr, canonical_mesh ? &*canonical_mesh : nullptr, saved);
+    if (s.ok() && model && !model->ok()) s = model->status();
+    if (s.ok()) VD_LOG_INFO << "snapshot written to " << path->string();
+    else VD_LOG_WARNING << "snapshot failed: " << s.ToString();
+    MaybeCheckpoint(CheckpointTrigger::kSnapshot, saved);
+  }
+
+  // Borrowed from the caller, which validated them once at start-up.
+  const ServerOptions& options_;
+  // Borrowed from the caller; publishing is thread-safe in LCM.
+  lcm::LCM* lcm_;
+  // Run by the worker; the receive thread only calls Prefetch, which is made to run beside Process.
+  std::unique_ptr<Engine> engine_;
+  // Guards everything below: the receive thread (handlers, Tick) and the worker share it.
+  mutable std::mutex mutex_;
+  // Wakes the worker for a frame, a reset or a snapshot.
+  std::condition_variable cv_;
+  // One slot: the newest accepted frame not yet processed.
+  std::optional<RgbdFrame> mailbox_;
+  // Control commands wait for the worker, which owns the engine.
+  bool reset_requested_ = false;
+  bool mesh_requested_ = false;
+  std::vector<std::string> snapshot_requests_;
+  // Decides about every message before it reaches the engine; counts what it received.
+  FrameGate gate_;
+  // Decides when the worker writes a checkpoint.
+  CheckpointScheduler scheduler_;
+  // Frames received are counted by the gate; these are what became of them after it.
+  int64_t processed_ = 0, dropped_ = 0, rejected_ = 0;
+  // Frames fused into the current model (continued across --resume).
+  int64_t model_frames_ = 0;
+  // Checkpoint outcome for the status: how many, when the last one was written, what happened.
+  int64_t checkpoints_written_ = 0;
+  int64_t checkpoint_utime_ = 0;
+  std::string checkpoint_message_;
+  // Refused frames by reason, reported in the status.
+  std::map<std::string, int64_t> reject_counts_;
+  // The newest frame in the model; a resumed model continues the sequence.
+  int64_t last_processed_seq_ = -1;
+  std::string last_source_id_;
+  // What the status says the server is doing, and why (device, tracking failure, bad frame).
+  int8_t state_ = vdeform::server_status_t::STATE_IDLE;
+  std::string message_ = "waiting for frames";
+  // Stage times of every processed frame, for the status and the summary at exit.
+  StageStats stats_;
+  // Completion times of the last 30 frames, for the frame rate.
+  std::deque<Clock::time_point> process_times_;
+  // The last frame's solve, for a monitor: depth correspondences and SIFT matches (none of either
+  // means the solve ran on regularity alone), the energy before and after (a rise means it
+  // diverged), the grid points near the surface (what the solve and memory scale with).
+  int32_t dense_ = 0;
+  int32_t sparse_ = 0;
+  float energy_initial_ = 0.f;
+  float energy_final_ = 0.f;
+  int64_t active_voxels_ = 0;
+  // Encoded once per frame, republished on REQUEST_MESH to viewers that join late.
+  std::optional<vdeform::mesh_t> last_live_, last_canonical_;
+  // The canonical mesh is large: sent at most once a second, and only when it changed.
+  bool canonical_changed_ = false;
+  Clock::time_point last_canonical_sent_{};
+  // Status goes out after each frame and at least twice a second.
+  Clock::time_point last_status_{};
+};
+
+Node::Node(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate)
+    : impl_(std::make_unique<Impl>(options, lcm, std::move(engine), std::move(gate))) {}
+Node::~Node() = default;
+
+void Node::OnFrame(const lcm::ReceiveBuffer* rbuf, const std::string&) { impl_->OnFrame(rbuf); }
+void Node::OnControl(const lcm::ReceiveBuffer* rbuf, const std::string&) { impl_->OnControl(rbuf); }
+Status Node::Serve(const std::atomic<bool>* stop) { return impl_->Serve(stop); }
+void Node::Work(const std::atomic<bool>* stop) { impl_->Work(stop); }
+bool Node::RunOnce() { return impl_->RunOnce(); }
+void Node::Tick() { impl_->Tick(); }
+void Node::PublishStatusNow() { impl_->PublishStatus(); }
+bool Node::Resume() { return impl_->Resume(); }
+void Node::MaybeCheckpoint(CheckpointTrigger trigger) { impl_->MaybeCheckpoint(trigger); }
+int64_t Node::checkpoints_written() const { return impl_->checkpoints_written(); }
+GateCounters Node::gate_counters() const { return impl_->gate_counters(); }
+void Node::PrintSummary() const { impl_->PrintSummary(); }
 
 int RunNode(const ServerOptions& options) {
   std::signal(SIGINT, OnSignal);
@@ -54,17 +507,12 @@ int RunNode(const ServerOptions& options) {
   if (options.resume) node.Resume();
   lcm.subscribe(kFrameChannel, &Node::OnFrame, &node);
   lcm.subscribe(kControlChannel, &Node::OnControl, &node);
-  std::thread worker([&] { node.Work(&g_stop); });
-  while (!g_stop) {
-    if (lcm.handleTimeout(50) < 0) {
-      VD_LOG_ERROR << "LCM receive failed; stopping";
-      g_stop = true;
-    }
-    node.Tick();
-  }
-  worker.join();
-  node.MaybeCheckpoint(true);
+  const Status served = node.Serve(&g_stop);
   node.PrintSummary();
+  if (!served.ok()) {
+    VD_LOG_ERROR << served.message() << "; stopped";
+    return 1;
+  }
   return 0;
 }
 

@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
-#include "server_options.h"
+#include "offline.h"
 #include "stats.h"
 #include "vd/common/codecs.h"
 #include "vd/common/log.h"
@@ -36,6 +36,20 @@ std::string FramePath(const std::string& dir, int64_t index, const char* suffix)
 
 }  // namespace
 
+SourceOptions ToSourceOptions(const ServerOptions& options) {
+  SourceOptions s;
+  s.intrinsics = options.intrinsics;
+  s.depth_scale = float(options.depth_scale);
+  s.start = options.start;
+  s.count = options.count;
+  s.stride = int(options.stride);
+  return s;
+}
+
+int64_t SourceFrameIndex(const SourceOptions& options, int64_t delivered) {
+  return options.start + delivered * options.stride;
+}
+
 int RunOffline(const ServerOptions& options) {
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
@@ -43,7 +57,7 @@ int RunOffline(const ServerOptions& options) {
     std::fprintf(stderr, "vdeform-server: %s\n", s.ToString().c_str());
     return 1;
   };
-  const SourceOptions source_options = options.ToSourceOptions();
+  const SourceOptions source_options = ToSourceOptions(options);
   if (Status s = source_options.Validate(); !s.ok()) return fail(s);
   auto source = OpenSource(options.input, source_options);
   if (!source.ok()) return fail(source.status());
@@ -61,13 +75,19 @@ int RunOffline(const ServerOptions& options) {
   const int64_t total = (*source)->NumFrames();
   const bool tty = isatty(fileno(stderr));
   int64_t processed = 0, lost = 0;
+  // Frames taken from the source so far; names the output files by their index in the source.
+  int64_t delivered = 0;
   const auto t_start = std::chrono::steady_clock::now();
   // One frame of look-ahead: its features are detected while the current frame is solved.
   auto next = (*source)->Next();
   while (!g_stop) {
-    if (!next.ok()) return fail(next.status().WithContext("reading frame " + std::to_string(processed)));
+    if (!next.ok()) {
+      const int64_t index = SourceFrameIndex(source_options, delivered);
+      return fail(next.status().WithContext("reading frame " + std::to_string(index)));
+    }
     if (!next->has_value()) break;
     const RgbdFrame frame = std::move(**next);
+    const int64_t index = SourceFrameIndex(source_options, delivered++);
     next = (*source)->Next();
     if (next.ok() && next->has_value()) (*engine)->Prefetch(**next);
     const auto t0 = std::chrono::steady_clock::now();
@@ -77,12 +97,12 @@ int RunOffline(const ServerOptions& options) {
     stats.Add(result->times, ms);
     if (!result->tracking_ok) {
       ++lost;
-      VD_LOG_WARNING << "frame " << processed << ": " << result->tracking_message;
+      VD_LOG_WARNING << "frame " << index << ": " << result->tracking_message;
     }
     if (!options.save_dir.empty()) {
-      Status s = WritePly(FramePath(options.save_dir, processed, "mesh.ply"), result->live_mesh);
-      if (s.ok()) s = WritePly(FramePath(options.save_dir, processed, "canonical.ply"), result->canonical_mesh);
-      if (s.ok()) s = WritePose(FramePath(options.save_dir, processed, "pose.txt"), result->pose);
+      Status s = WritePly(FramePath(options.save_dir, index, "mesh.ply"), result->live_mesh);
+      if (s.ok()) s = WritePly(FramePath(options.save_dir, index, "canonical.ply"), result->canonical_mesh);
+      if (s.ok()) s = WritePose(FramePath(options.save_dir, index, "pose.txt"), result->pose);
       if (!s.ok()) return fail(s);
     }
     ++processed;

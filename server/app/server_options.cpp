@@ -1,4 +1,4 @@
-// vdeform-server's flags and their translation into engine and source parameters.
+// vdeform-server's flags and their translation into engine and gate parameters.
 #include "server_options.h"
 
 #include <algorithm>
@@ -16,7 +16,8 @@ void ServerOptions::Register(FlagParser* f) {
   f->Add("stride", &stride, "Use every n-th frame of the source", "N");
   f->Add("save-dir", &save_dir,
          "Write frame-%06d.mesh.ply (live, camera coordinates), frame-%06d.canonical.ply and frame-%06d.pose.txt "
-         "(camera-to-world) per frame",
+         "(camera-to-world) per frame, numbered by the frame's index in the source (--start 3 --stride 2: 3, 5, 7, "
+         "...)",
          "DIR");
   f->Add("stats-json", &stats_json, "Write per-stage timing statistics, fps and peak memory", "FILE");
   engine.Bind(f);
@@ -76,16 +77,6 @@ StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
     g.control_key = std::move(key).value();
   }
   return g;
-}
-
-SourceOptions ServerOptions::ToSourceOptions() const {
-  SourceOptions s;
-  s.intrinsics = intrinsics;
-  s.depth_scale = float(depth_scale);
-  s.start = start;
-  s.count = count;
-  s.stride = int(stride);
-  return s;
 }
 
 }  // namespace vd

@@ -5,7 +5,6 @@
 #include "core/engine.h"
 #include "vd/common/flags.h"
 #include "gate.h"
-#include "vd/capture/source.h"
 
 namespace vd {
 
@@ -44,14 +43,8 @@ struct ServerOptions {
   void Register(FlagParser* flags);
   // The engine's parameters and the server's own; called once after parsing.
   Status Validate() const;
-  SourceOptions ToSourceOptions() const;
   // Reads the key file and splits accept_sources; fails on an unreadable or weak key.
   StatusOr<GateOptions> ToGateOptions() const;
 };
-
-// Offline mode: the engine over a data set or synthetic source, no LCM. Returns the exit code.
-int RunOffline(const ServerOptions& options);
-// The LCM node. Returns the exit code.
-int RunNode(const ServerOptions& options);
 
 }  // namespace vd

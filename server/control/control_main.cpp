@@ -82,7 +82,7 @@ int main(int argc, char** argv) {
       "  vdeform-control --command reset|snapshot|request-mesh [--path NAME] [--key-file FILE]\n"
       "  vdeform-control --command status     print the server's status as key=value lines (monitoring)\n"
       "Exit status: 0 taken, 1 refused by the server or no server answered within --wait, 2 usage error.");
-  flags.Add("command", &command, "status (print the server's status), reset (drop the model), snapshot (write meshes, volume and a checkpoint), "
+  flags.Add("command", &command, "status (print the server's status), reset (drop the model), snapshot (write meshes, the model as a checkpoint file, and a checkpoint), "
                                        "request-mesh (republish the current meshes)");
   flags.Add("path", &path, "snapshot: a name relative to the server's --snapshot-dir");
   flags.Add("key-file", &key_file, "The server's --control-key-file: signs the command with HMAC-SHA256");

@@ -3,7 +3,8 @@
 # current mesh within a second even while no new frame arrives; a capture client killed and
 # restarted is seen as a restart and the stream goes on; control commands need the HMAC key;
 # the server killed (SIGKILL) and restarted with --resume continues the checkpointed model; a torn
-# checkpoint is reported in the status and a new model started; every process stops cleanly.
+# checkpoint is reported in the status and a new model started; every process stops cleanly, the
+# server without an error line.
 #   faults_test.sh BUILD_DIR
 set -uo pipefail
 build=$1
@@ -137,11 +138,15 @@ ls "$work"/ckpt/*.corrupt-* >/dev/null 2>&1 || fail "torn checkpoint not kept as
 wait_for model_frames -ge 2 60
 echo "torn checkpoint: reported ('${msg:0:60}...'), new model has $(status model_frames) frames"
 
-# 6. Clean stop: SIGINT ends every process with status 0 and the server writes a final checkpoint.
+# 6. Clean stop: SIGINT ends every process with status 0, the server writes a final checkpoint and
+#    logs no error while stopping.
+logged=$(wc -l <"$work/server.log")
 kill -INT "$capture" "$server"
 wait "$capture" || fail "capture exited with $? after SIGINT"
 wait "$server" || fail "server exited with $? after SIGINT"
 pids=()
 grep -q "^vdeform-server: received" "$work/server.log" || fail "no server summary"
+stop_errors=$(tail -n +$((logged + 1)) "$work/server.log" | grep '^E ')
+[ -z "$stop_errors" ] || fail "errors logged on a clean stop: $stop_errors"
 [ -s "$work/ckpt/checkpoint.vdck" ] || fail "no checkpoint after a clean stop"
 echo "FAULTS OK"

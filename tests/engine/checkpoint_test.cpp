@@ -306,11 +306,11 @@ TEST_F(NodeCheckpointTest, ResumeContinuesTheModelAndACorruptCheckpointStartsANe
     lcm::LCM lcm("memq://");
     auto node = MakeNode(&lcm);
     Feed(&lcm, node.get(), 0, 4);
-    node->MaybeCheckpoint(false);  // interval 0: periodic checkpoints are off
+    node->MaybeCheckpoint(CheckpointTrigger::kInterval);  // interval 0: periodic checkpoints are off
     EXPECT_EQ(node->checkpoints_written(), 0);
-    node->MaybeCheckpoint(true);  // SAVE_SNAPSHOT or shutdown
+    node->MaybeCheckpoint(CheckpointTrigger::kShutdown);
     EXPECT_EQ(node->checkpoints_written(), 1);
-    node->MaybeCheckpoint(true);
+    node->MaybeCheckpoint(CheckpointTrigger::kSnapshot);
     EXPECT_EQ(node->checkpoints_written(), 1) << "nothing changed since";
     const auto st = Status(&lcm, node.get());
     EXPECT_EQ(st.model_frames, 4);

@@ -1,13 +1,20 @@
 // The server node driven in-process over LCM's memq:// provider: bad frames are rejected with a
 // reason and never reach the model, good frames are processed and answered with meshes and
-// status, stale frames are ignored, snapshot paths stay inside the snapshot directory.
+// status, stale frames are ignored, snapshot paths stay inside the snapshot directory and the
+// snapshot's model is a checkpoint, a signal stops serving without an error.
 #include <gtest/gtest.h>
+#include <pthread.h>
 
+#include <atomic>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
+#include <thread>
 
+#include "core/checkpoint.h"
 #include "node.h"
 #include "ocl/ocl.h"
+#include "snapshot.h"
 #include "vd/capture/synthetic.h"
 
 namespace vd {
@@ -156,9 +163,17 @@ TEST_F(NodeTest, SnapshotStaysInsideItsDirectoryAndMeshRequestRepublishes) {
   Pump();
   node_->RunOnce();
   EXPECT_FALSE(std::filesystem::exists(options_.snapshot_dir + "/../escape"));
-  EXPECT_TRUE(std::filesystem::exists(options_.snapshot_dir + "/snap1/live.ply"));
-  EXPECT_TRUE(std::filesystem::exists(options_.snapshot_dir + "/snap1/volume.bin"));
-  EXPECT_FALSE(std::filesystem::exists(options_.snapshot_dir + "/snap1/volume.bin.tmp"));
+  const std::string snap = options_.snapshot_dir + "/snap1/";
+  EXPECT_TRUE(std::filesystem::exists(snap + kSnapshotLiveFile));
+  EXPECT_TRUE(std::filesystem::exists(snap + kSnapshotCanonicalFile));
+  // The model in the checkpoint format (versioned, SHA-256), read by the checkpoint reader.
+  auto model = ReadCheckpoint(snap + kCheckpointFile);
+  ASSERT_TRUE(model.ok()) << model.status().ToString();
+  EXPECT_EQ(model->frames_fused, 1);
+  EXPECT_EQ(model->last_seq, 0);
+  EXPECT_EQ(model->source_id, "test");
+  EXPECT_GT(model->tsdf.size(), 0u);
+  EXPECT_FALSE(std::filesystem::exists(snap + kCheckpointFile + ".tmp"));
 
   const size_t before = inbox_.meshes.size();
   c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
@@ -170,6 +185,43 @@ TEST_F(NodeTest, SnapshotStaysInsideItsDirectoryAndMeshRequestRepublishes) {
   // Live and canonical meshes are sent again for a viewer that joined late.
   ASSERT_GE(inbox_.meshes.size(), before + 2);
   EXPECT_EQ(int(inbox_.meshes.back().kind), int(vdeform::mesh_t::KIND_CANONICAL));
+}
+
+// Serving until a signal. select() in the receive returns EINTR for a signal that arrives while it
+// waits: that is no error; the signal whose handler sets the stop flag (Ctrl-C) ends serving cleanly.
+std::atomic<bool> g_serve_stop{false};
+std::atomic<int> g_signals{0};
+constexpr int kSignalsToStop = 5;
+void OnTestSignal(int) {
+  if (++g_signals >= kSignalsToStop) g_serve_stop = true;
+}
+
+TEST_F(NodeTest, SignalsStopServingWithoutAnError) {
+  g_serve_stop = false;
+  g_signals = 0;
+  struct sigaction action {}, previous {};
+  action.sa_handler = OnTestSignal;
+  sigemptyset(&action.sa_mask);
+  ASSERT_EQ(sigaction(SIGINT, &action, &previous), 0);
+  const pthread_t serving = pthread_self();
+  std::thread ctrl_c([&] {
+    for (;;) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(40));
+      if (g_serve_stop) break;
+      pthread_kill(serving, SIGINT);
+    }
+  });
+  testing::internal::CaptureStderr();
+  const vd::Status served = node_->Serve(&g_serve_stop);
+  const std::string log = testing::internal::GetCapturedStderr();
+  ctrl_c.join();
+  sigaction(SIGINT, &previous, nullptr);
+  Pump();
+  EXPECT_TRUE(served.ok()) << served.ToString();
+  EXPECT_GE(g_signals, kSignalsToStop);
+  // Log lines start with their level: "E <time> file:line] ..." for an error.
+  EXPECT_FALSE(log.rfind("E ", 0) == 0 || log.find("\nE ") != std::string::npos) << log;
+  EXPECT_GE(inbox_.status.size(), 1u) << "the loop published status while it served";
 }
 
 // A frame of another scene: reported in the status as TRACKING_LOST, not fused (the model's frame
