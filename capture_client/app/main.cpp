@@ -52,8 +52,6 @@ struct Args {
   std::string lcm_url;
   std::string write_dir;
   bool quiet = false;
-  bool help = false;
-  std::string help_text;
 };
 
 void Bind(FlagParser* f, Args* a) {
@@ -103,15 +101,9 @@ void Bind(FlagParser* f, Args* a) {
   f->AddSwitch("quiet", &a->quiet, "No progress line and no informational log (errors and the summary remain)");
 }
 
-StatusOr<Args> ParseArgs(int argc, char** argv) {
-  Args a;
-  FlagParser flags(kUsage, kEpilogue);
-  Bind(&flags, &a);
-  VD_RETURN_IF_ERROR(flags.Parse(argc, argv, &a.help));
-  if (a.help) {
-    a.help_text = flags.Help();
-    return a;
-  }
+// What the flags alone cannot check: combinations that would be silently ignored, the default id.
+Status Finish(const FlagParser& flags, Args* args) {
+  Args& a = *args;
   a.has_fps = flags.Given("fps");
   VD_RETURN_IF_ERROR(a.source_options.Validate());
   VD_RETURN_IF_ERROR(a.encode.Validate());
@@ -131,7 +123,7 @@ StatusOr<Args> ParseArgs(int argc, char** argv) {
     if (gethostname(host, sizeof(host) - 1) != 0) std::snprintf(host, sizeof(host), "unknown");
     a.source_id = "capture-" + std::string(host) + "-" + std::to_string(getpid());
   }
-  return a;
+  return Status::Ok();
 }
 
 int WriteDataset(const Args& a) {
@@ -275,15 +267,10 @@ int Run(const Args& a) {
 }  // namespace vd
 
 int main(int argc, char** argv) {
-  auto args = vd::ParseArgs(argc, argv);
-  if (!args.ok()) {
-    std::fprintf(stderr, "vdeform-capture: error: %s\nTry 'vdeform-capture --help'.\n",
-                 args.status().message().c_str());
-    return 2;
-  }
-  if (args->help) {
-    std::fputs(args->help_text.c_str(), stdout);
-    return 0;
-  }
-  return vd::Run(*args);
+  vd::Args args;
+  vd::FlagParser flags(vd::kUsage, vd::kEpilogue);
+  vd::Bind(&flags, &args);
+  if (auto exit_code = flags.ParseCommandLine(argc, argv, "vdeform-capture", [&] { return vd::Finish(flags, &args); }))
+    return *exit_code;
+  return vd::Run(args);
 }

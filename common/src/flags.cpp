@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <climits>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <sstream>
 
@@ -162,6 +163,22 @@ Status FlagParser::Parse(const std::vector<std::string>& args, bool* help_reques
     given_.insert(name);
   }
   return Status::Ok();
+}
+
+std::optional<int> FlagParser::ParseCommandLine(int argc, char** argv, const std::string& program,
+                                                const std::function<Status()>& validate) {
+  bool help = false;
+  Status s = Parse(argc, argv, &help);
+  if (help) {
+    std::fputs(Help().c_str(), stdout);
+    return 0;
+  }
+  if (s.ok() && validate) s = validate();
+  if (!s.ok()) {
+    std::fprintf(stderr, "%s: %s\n", program.c_str(), s.message().c_str());
+    return 2;
+  }
+  return std::nullopt;
 }
 
 std::string FlagParser::Help() const {

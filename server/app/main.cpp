@@ -16,21 +16,9 @@ int main(int argc, char** argv) {
       "  vdeform-server [flags]                 run as an LCM service: frames in, meshes and status out\n"
       "  vdeform-server --input SOURCE [flags]  run offline over a data set or synthetic scene");
   options.Register(&flags);
-  bool help = false;
-  vd::Status s = flags.Parse(argc, argv, &help);
-  if (help) {
-    std::printf("%s", flags.Help().c_str());
-    return 0;
-  }
-  if (!s.ok()) {
-    std::fprintf(stderr, "vdeform-server: %s\n", s.message().c_str());
-    return 2;
-  }
   // Every parameter is checked once, here, before anything starts.
-  if (s = options.Validate(); !s.ok()) {
-    std::fprintf(stderr, "vdeform-server: %s\n", s.message().c_str());
-    return 2;
-  }
+  if (auto exit_code = flags.ParseCommandLine(argc, argv, "vdeform-server", [&] { return options.Validate(); }))
+    return *exit_code;
   if (options.quiet) vd::SetLogLevel(vd::LogLevel::kWarning);
   if (options.list_devices) {
     auto devices = vd::ocl::ListDevices();

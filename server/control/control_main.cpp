@@ -89,16 +89,7 @@ int main(int argc, char** argv) {
   flags.Add("sender", &sender, "Who sends it, for the server's log (default vdeform-control@HOSTNAME)");
   flags.Add("lcm-url", &lcm_url, "LCM URL (default: $LCM_DEFAULT_URL, else host-only multicast)");
   flags.Add("wait", &wait, "Seconds to wait for the server's status to confirm (0 = send and exit)");
-  bool help = false;
-  vd::Status s = flags.Parse(argc, argv, &help);
-  if (help) {
-    std::printf("%s", flags.Help().c_str());
-    return 0;
-  }
-  if (!s.ok()) {
-    std::fprintf(stderr, "vdeform-control: %s\n", s.message().c_str());
-    return 2;
-  }
+  if (auto exit_code = flags.ParseCommandLine(argc, argv, "vdeform-control")) return *exit_code;
   vdeform::control_t msg{};
   if (command == "reset") {
     msg.command = vdeform::control_t::COMMAND_RESET;

@@ -20,21 +20,9 @@ int main(int argc, char** argv) {
   flags.Add("frames", &frames, "Frames in one pass of the scene's motion");
   flags.Add("feed-stride", &stride, "Feed every n-th frame (fast motion)");
   flags.AddSwitch("verbose", &verbose, "One line per frame");
-  bool help = false;
-  vd::Status s = flags.Parse(argc, argv, &help);
-  if (help) {
-    std::printf("%s", flags.Help().c_str());
-    return 0;
-  }
-  if (!s.ok()) {
-    std::fprintf(stderr, "vd_scene_bench: %s\n", s.message().c_str());
-    return 2;
-  }
+  if (auto exit_code = flags.ParseCommandLine(argc, argv, "vd_scene_bench", [&] { return options.Validate(); }))
+    return *exit_code;
   vd::SetLogLevel(vd::LogLevel::kWarning);
-  if (s = options.Validate(); !s.ok()) {
-    std::fprintf(stderr, "vd_scene_bench: %s\n", s.message().c_str());
-    return 2;
-  }
   vd::test::SceneRun run;
   run.name = scene;
   run.params = options.engine;

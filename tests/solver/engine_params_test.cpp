@@ -113,15 +113,19 @@ TEST(EngineParamsTest, BadValuesFailValidationNamingTheField) {
     Status s = f.Parse(args, &help);
     return s.ok() ? p.Validate() : s;
   };
-  EXPECT_NE(parse({"--voxel-size", "0.5"}).message().find("EngineParams.voxel_size = 0.5 violates"), std::string::npos);
-  EXPECT_NE(parse({"--levels", "9"}).message().find("SolverParams.levels = 9 violates"), std::string::npos);
-  EXPECT_NE(parse({"--match-keep-per-pair", "500"}).message().find("FeatureParams.keep_per_pair = 500"),
-            std::string::npos);
-  EXPECT_NE(parse({"--icp-iterations", "1,2"}).message().find("three counts"), std::string::npos);
-  EXPECT_NE(parse({"--icp-iterations", "1,2,3,4"}).message().find("three counts"), std::string::npos);
-  EXPECT_NE(parse({"--icp-iterations", "1,x,3"}).message().find("--icp-iterations expects an integer"),
-            std::string::npos);
-  EXPECT_NE(parse({"--icp-iterations", "1,200,3"}).message().find("out of range"), std::string::npos);
+  const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+      {{"--voxel-size", "0.5"}, "EngineParams.voxel_size = 0.5 violates"},
+      {{"--levels", "9"}, "SolverParams.levels = 9 violates"},
+      {{"--match-keep-per-pair", "500"}, "FeatureParams.keep_per_pair = 500"},
+      {{"--icp-iterations", "1,2"}, "three counts"},
+      {{"--icp-iterations", "1,2,3,4"}, "three counts"},
+      {{"--icp-iterations", "1,x,3"}, "--icp-iterations expects an integer"},
+      {{"--icp-iterations", "1,200,3"}, "out of range"},
+  };
+  for (const auto& [args, expected] : cases) {
+    const Status s = parse(args);
+    EXPECT_NE(s.message().find(expected), std::string::npos) << args[0] << " " << args[1] << ": " << s.message();
+  }
   EXPECT_TRUE(parse({"--icp-iterations", "0,0,1"}).ok());
 }
 

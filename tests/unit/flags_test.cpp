@@ -1,6 +1,9 @@
 // The one flag parser every program uses: bindings, defaults in --help, and errors that name the flag.
 #include "vd/common/flags.h"
 
+#include <optional>
+#include <tuple>
+
 #include <gtest/gtest.h>
 
 namespace vd {
@@ -135,6 +138,33 @@ TEST(FlagParserTest, ErrorsNameTheFlag) {
     EXPECT_EQ(s.code(), StatusCode::kInvalidArgument);
     EXPECT_NE(s.message().find(expected), std::string::npos) << s.message();
   }
+}
+
+TEST(FlagParserTest, CommandLineExitCodes) {
+  auto run = [](std::vector<std::string> args, Status verdict) {
+    Bound b;
+    FlagParser f = MakeParser(&b);
+    std::vector<char*> argv = {const_cast<char*>("prog")};
+    for (std::string& a : args) argv.push_back(a.data());
+    testing::internal::CaptureStderr();
+    testing::internal::CaptureStdout();
+    const std::optional<int> rc = f.ParseCommandLine(int(argv.size()), argv.data(), "prog", [&] { return verdict; });
+    const std::string out = testing::internal::GetCapturedStdout(), err = testing::internal::GetCapturedStderr();
+    return std::make_tuple(rc, out, err);
+  };
+  auto [rc_go, out_go, err_go] = run({"--fast"}, Status::Ok());
+  EXPECT_FALSE(rc_go.has_value());
+  EXPECT_EQ(out_go + err_go, "");
+  auto [rc_help, out_help, err_help] = run({"--help"}, InvalidArgument("not checked on --help"));
+  EXPECT_EQ(rc_help, 0);
+  EXPECT_EQ(out_help.find("usage: prog"), 0u);
+  EXPECT_EQ(err_help, "");
+  auto [rc_bad, out_bad, err_bad] = run({"--level", "x"}, Status::Ok());
+  EXPECT_EQ(rc_bad, 2);
+  EXPECT_EQ(err_bad, "prog: --level expects an integer, got 'x'\n");
+  auto [rc_invalid, out_invalid, err_invalid] = run({}, InvalidArgument("--fast and --slow exclude each other"));
+  EXPECT_EQ(rc_invalid, 2);
+  EXPECT_EQ(err_invalid, "prog: --fast and --slow exclude each other\n");
 }
 
 TEST(FlagParserTest, ParamOutOfBoundsNamesOwnerFieldValueAndBound) {

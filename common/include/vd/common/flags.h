@@ -6,6 +6,7 @@
 // out of the field's range are errors naming the flag.
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -40,6 +41,11 @@ class FlagParser {
   // caller prints Help() and exits 0).
   Status Parse(int argc, char** argv, bool* help_requested);
   Status Parse(const std::vector<std::string>& args, bool* help_requested);
+  // For main(): parses argv and then runs `validate` (the options' one check). Prints --help to
+  // stdout and returns 0; prints "<program>: <error>" to stderr and returns 2 on bad arguments;
+  // returns std::nullopt when the program should go on.
+  std::optional<int> ParseCommandLine(int argc, char** argv, const std::string& program,
+                                      const std::function<Status()>& validate = nullptr);
   // Whether --name appeared on the command line (to reject combinations that would be ignored).
   bool Given(const std::string& name) const { return given_.count(name) > 0; }
   std::string Help() const;
