@@ -29,8 +29,8 @@ typedef struct {
 } VdRasterBox;
 
 typedef struct {
-  /* Corners in 1/256 px, the caller's corners 1 and 2 swapped where needed so the area is positive. */
-  vd_long ax, ay, bx, by, cx, cy;
+  /* The caller's corners, 1 and 2 swapped where needed so that the area is positive. */
+  VdRasterCorner a, b, c;
   /* Twice the area in (1/256 px)^2: the three edge functions sum to it everywhere. */
   vd_long area;
   /* -1 on an edge that does not own the centres lying on it (top-left rule), else 0. */
@@ -46,6 +46,9 @@ typedef struct {
   VdRasterBox box;
 } VdRasterTri;
 
+VD_INLINE vd_long vd_min_l(vd_long a, vd_long b) { return a < b ? a : b; }
+VD_INLINE vd_long vd_max_l(vd_long a, vd_long b) { return a > b ? a : b; }
+
 /* Twice the signed area of (a, b, p): positive when p lies left of a->b in a y-down image. */
 VD_INLINE vd_long vd_raster_edge(vd_long ax, vd_long ay, vd_long bx, vd_long by, vd_long px, vd_long py) {
   return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
@@ -60,7 +63,9 @@ VD_INLINE vd_long vd_raster_edge_bias(vd_long ax, vd_long ay, vd_long bx, vd_lon
 /* A triangle that covers nothing. */
 VD_INLINE VdRasterTri vd_raster_tri_empty(void) {
   VdRasterTri r;
-  r.ax = r.ay = r.bx = r.by = r.cx = r.cy = 0;
+  r.a.x = r.a.y = 0;
+  r.a.z = 0.0f;
+  r.b = r.c = r.a;
   r.area = 0;
   r.bias_a = r.bias_b = r.bias_c = 0;
   r.iz0 = r.iz1 = r.iz2 = 0.0f;
@@ -83,26 +88,21 @@ VD_INLINE VdRasterTri vd_raster_tri(VdRasterCorner c0, VdRasterCorner c1, VdRast
     c2 = t;
     area = -area;
   }
-  r.ax = c0.x;
-  r.ay = c0.y;
-  r.bx = c1.x;
-  r.by = c1.y;
-  r.cx = c2.x;
-  r.cy = c2.y;
+  r.a = c0;
+  r.b = c1;
+  r.c = c2;
   r.area = area;
-  const vd_long min_x = r.ax < r.bx ? (r.ax < r.cx ? r.ax : r.cx) : (r.bx < r.cx ? r.bx : r.cx);
-  const vd_long max_x = r.ax > r.bx ? (r.ax > r.cx ? r.ax : r.cx) : (r.bx > r.cx ? r.bx : r.cx);
-  const vd_long min_y = r.ay < r.by ? (r.ay < r.cy ? r.ay : r.cy) : (r.by < r.cy ? r.by : r.cy);
-  const vd_long max_y = r.ay > r.by ? (r.ay > r.cy ? r.ay : r.cy) : (r.by > r.cy ? r.by : r.cy);
+  const vd_long min_x = vd_min_l(c0.x, vd_min_l(c1.x, c2.x)), max_x = vd_max_l(c0.x, vd_max_l(c1.x, c2.x));
+  const vd_long min_y = vd_min_l(c0.y, vd_min_l(c1.y, c2.y)), max_y = vd_max_l(c0.y, vd_max_l(c1.y, c2.y));
   /* The first centre at or after the minimum, the last at or before the maximum. */
   const vd_long round_up = (1 << VD_RASTER_SUB_BITS) - 1;
   r.box.x0 = vd_max_i((int)((min_x + round_up) >> VD_RASTER_SUB_BITS), window.x0);
   r.box.x1 = vd_min_i((int)(max_x >> VD_RASTER_SUB_BITS), window.x1);
   r.box.y0 = vd_max_i((int)((min_y + round_up) >> VD_RASTER_SUB_BITS), window.y0);
   r.box.y1 = vd_min_i((int)(max_y >> VD_RASTER_SUB_BITS), window.y1);
-  r.bias_a = vd_raster_edge_bias(r.bx, r.by, r.cx, r.cy);
-  r.bias_b = vd_raster_edge_bias(r.cx, r.cy, r.ax, r.ay);
-  r.bias_c = vd_raster_edge_bias(r.ax, r.ay, r.bx, r.by);
+  r.bias_a = vd_raster_edge_bias(c1.x, c1.y, c2.x, c2.y);
+  r.bias_b = vd_raster_edge_bias(c2.x, c2.y, c0.x, c0.y);
+  r.bias_c = vd_raster_edge_bias(c0.x, c0.y, c1.x, c1.y);
   /* Back in the caller's order: the swap only orients the edges. */
   r.iz0 = 1.0f / c0.z;
   r.iz1 = 1.0f / (r.swapped ? c2.z : c1.z);
@@ -115,9 +115,9 @@ VD_INLINE VdRasterTri vd_raster_tri(VdRasterCorner c0, VdRasterCorner c1, VdRast
  * corner's screen-space barycentric times the area); returns 1 when the triangle covers it. */
 VD_INLINE int vd_raster_cover(VdRasterTri r, int x, int y, vd_long* w0, vd_long* w1, vd_long* w2) {
   const vd_long sx = (vd_long)x << VD_RASTER_SUB_BITS, sy = (vd_long)y << VD_RASTER_SUB_BITS;
-  const vd_long ea = vd_raster_edge(r.bx, r.by, r.cx, r.cy, sx, sy);
-  const vd_long eb = vd_raster_edge(r.cx, r.cy, r.ax, r.ay, sx, sy);
-  const vd_long ec = vd_raster_edge(r.ax, r.ay, r.bx, r.by, sx, sy);
+  const vd_long ea = vd_raster_edge(r.b.x, r.b.y, r.c.x, r.c.y, sx, sy);
+  const vd_long eb = vd_raster_edge(r.c.x, r.c.y, r.a.x, r.a.y, sx, sy);
+  const vd_long ec = vd_raster_edge(r.a.x, r.a.y, r.b.x, r.b.y, sx, sy);
   *w0 = ea;
   *w1 = r.swapped ? ec : eb;
   *w2 = r.swapped ? eb : ec;
