@@ -6,33 +6,15 @@
 
 #include <omp.h>
 
+#include "shared/raster_math.h"
+
 namespace vd {
 namespace {
 
-// 8 bits of sub-pixel precision: 1/256 px is ~0.006 mm at 1 m and 525 px focal length.
-constexpr int kSubBits = 8;
-constexpr double kSubScale = 1 << kSubBits;
-// Projections farther out than this are dropped so the 64-bit edge functions cannot overflow.
-constexpr double kMaxProjectedPx = 1e6;
-
 struct Projected {
-  int64_t x = 0;
-  int64_t y = 0;
-  float z = 0.f;
+  VdRasterCorner corner{};
   bool ok = false;
 };
-
-// Twice the signed area of (a, b, p); positive when p lies to the left of a->b in a y-down image.
-inline int64_t Edge(int64_t ax, int64_t ay, int64_t bx, int64_t by, int64_t px, int64_t py) {
-  return (bx - ax) * (py - ay) - (by - ay) * (px - ax);
-}
-
-// Top-left rule: of the two directions of an edge exactly one owns the pixels lying on it.
-inline bool OwnsEdge(int64_t ax, int64_t ay, int64_t bx, int64_t by) {
-  const int64_t dy = by - ay;
-  const int64_t dx = bx - ax;
-  return dy < 0 || (dy == 0 && dx > 0);
-}
 
 struct RayHit {
   bool ok = false;
@@ -89,10 +71,8 @@ RasterImage Rasterize(const std::vector<float>& positions, const std::vector<int
     if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && p[2] >= kRasterMinDepth && std::isfinite(p[2]))) continue;
     const double u = fx * p[0] / p[2] + cx;
     const double v = fy * p[1] / p[2] + cy;
-    if (!(std::fabs(u) < kMaxProjectedPx && std::fabs(v) < kMaxProjectedPx)) continue;
-    q.x = std::llround(u * kSubScale);
-    q.y = std::llround(v * kSubScale);
-    q.z = p[2];
+    if (!(std::fabs(u) < VD_RASTER_MAX_PX && std::fabs(v) < VD_RASTER_MAX_PX)) continue;
+    q.corner = VdRasterCorner{std::llround(u * VD_RASTER_SUB_SCALE), std::llround(v * VD_RASTER_SUB_SCALE), p[2]};
     q.ok = true;
   }
 
@@ -112,36 +92,13 @@ RasterImage Rasterize(const std::vector<float>& positions, const std::vector<int
       const Projected* b = &proj[size_t(i1)];
       const Projected* c = &proj[size_t(i2)];
       if (!(a->ok && b->ok && c->ok)) continue;
-      int64_t area = Edge(a->x, a->y, b->x, b->y, c->x, c->y);
-      if (area == 0) continue;
-      if (area < 0) {
-        std::swap(b, c);
-        area = -area;
-      }
-      const int64_t min_x = std::min({a->x, b->x, c->x}), max_x = std::max({a->x, b->x, c->x});
-      const int64_t min_y = std::min({a->y, b->y, c->y}), max_y = std::max({a->y, b->y, c->y});
-      // Pixel centres at integer coordinates: the first centre at or after the minimum.
-      const int64_t px0 = std::max<int64_t>(0, (min_x + (1 << kSubBits) - 1) >> kSubBits);
-      const int64_t px1 = std::min<int64_t>(w - 1, max_x >> kSubBits);
-      const int64_t py0 = std::max<int64_t>(row_begin, (min_y + (1 << kSubBits) - 1) >> kSubBits);
-      const int64_t py1 = std::min<int64_t>(row_end - 1, max_y >> kSubBits);
-      if (px0 > px1 || py0 > py1) continue;
-      const int64_t bias0 = OwnsEdge(b->x, b->y, c->x, c->y) ? 0 : -1;
-      const int64_t bias1 = OwnsEdge(c->x, c->y, a->x, a->y) ? 0 : -1;
-      const int64_t bias2 = OwnsEdge(a->x, a->y, b->x, b->y) ? 0 : -1;
-      const double inv_area = 1.0 / double(area);
-      const double iz0 = 1.0 / a->z, iz1 = 1.0 / b->z, iz2 = 1.0 / c->z;
-      for (int64_t py = py0; py <= py1; ++py) {
-        const int64_t sy = py << kSubBits;
-        for (int64_t px = px0; px <= px1; ++px) {
-          const int64_t sx = px << kSubBits;
-          const int64_t w0 = Edge(b->x, b->y, c->x, c->y, sx, sy);
-          const int64_t w1 = Edge(c->x, c->y, a->x, a->y, sx, sy);
-          const int64_t w2 = Edge(a->x, a->y, b->x, b->y, sx, sy);
-          if ((w0 + bias0) < 0 || (w1 + bias1) < 0 || (w2 + bias2) < 0) continue;
-          // 1/z is affine in screen space over a planar triangle.
-          const double inv_z = (double(w0) * iz0 + double(w1) * iz1 + double(w2) * iz2) * inv_area;
-          const float z = float(1.0 / inv_z);
+      const VdRasterBox band{0, row_begin, w - 1, row_end - 1};
+      const VdRasterTri r = vd_raster_tri(a->corner, b->corner, c->corner, band);
+      for (int py = r.box.y0; py <= r.box.y1; ++py) {
+        for (int px = r.box.x0; px <= r.box.x1; ++px) {
+          vd_long w0, w1, w2;
+          if (!vd_raster_cover(r, px, py, &w0, &w1, &w2)) continue;
+          const float z = 1.f / vd_raster_inv_depth(r, w0, w1, w2);
           const size_t idx = size_t(py) * size_t(w) + size_t(px);
           if (z < zbuf[idx]) {
             zbuf[idx] = z;

@@ -6,6 +6,7 @@
 #include "core/device_ops.h"
 #include "core/mc_table.h"
 #include "cpu_ref/cpu_ref.h"
+#include "sphere_volume.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -15,26 +16,16 @@ TEST(ActiveSetParityTest, SurfaceCellsPlusOneRingMatchCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  VdVolume vol{};
-  vol.dim_x = 40;
-  vol.dim_y = 36;
-  vol.dim_z = 32;
-  vol.voxel_size = 0.01f;
-  vol.origin = VD_F4(0, 0, 0, 1);
-  vol.truncation = 0.04f;
-  vol.max_weight = 64;
-  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
-  std::vector<float> tsdf(n), weight(n, 1.f);
-  std::vector<uint32_t> color(n, 0u);
-  for (int z = 0; z < vol.dim_z; ++z)
-    for (int y = 0; y < vol.dim_y; ++y)
-      for (int x = 0; x < vol.dim_x; ++x) {
-        const size_t i = x + size_t(vol.dim_x) * (y + size_t(vol.dim_y) * z);
-        const float d = std::sqrt(float((x - 20) * (x - 20) + (y - 18) * (y - 18) + (z - 16) * (z - 16))) - 9.3f;
-        tsdf[i] = std::clamp(d / 4.f, -1.f, 1.f);
-        // An unobserved slab: no surface there, so no active points either.
-        if (z > 22) weight[i] = 0.f;
-      }
+  // A sphere of 9.3 voxels around grid point (20, 18, 16).
+  test::AnalyticVolume sphere =
+      test::MakeSphereVolume(test::TestVolume(40, 36, 32, 0.01f, VD_F4(0, 0, 0, 1)), 0.2f, 0.18f, 0.16f, 0.093f);
+  const VdVolume& vol = sphere.vol;
+  const size_t n = sphere.tsdf.size();
+  const std::vector<float>& tsdf = sphere.tsdf;
+  std::vector<float>& weight = sphere.weight;
+  const std::vector<uint32_t>& color = sphere.color;
+  // An unobserved slab: no surface there, so no active points either.
+  for (size_t i = size_t(vol.dim_x) * vol.dim_y * 23; i < n; ++i) weight[i] = 0.f;
   const cpu::McMesh mesh = cpu::MarchingCubes(tsdf.data(), weight.data(), color.data(), vol);
   const cpu::ActiveSet ref = cpu::BuildActiveSet(mesh.codes.data(), vol);
   ASSERT_GT(ref.list.size(), 1000u);

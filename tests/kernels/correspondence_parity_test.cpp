@@ -4,6 +4,7 @@
 
 #include "core/device_ops.h"
 #include "cpu_ref/cpu_ref.h"
+#include "sphere_volume.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -38,23 +39,10 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
   const VdCamera cam = test::TestCamera(160, 120);
   const int n = cam.width * cam.height;
   // Model: marching cubes of an analytic sphere, as canonical grid positions and world positions.
-  VdVolume vol{};
-  vol.dim_x = vol.dim_y = vol.dim_z = 48;
-  vol.voxel_size = 0.01f;
-  vol.origin = VD_F4(-0.24f, -0.24f, 0.76f, 1.f);
-  vol.truncation = 0.04f;
-  vol.max_weight = 64.f;
-  const size_t nv = size_t(48) * 48 * 48;
-  std::vector<float> tsdf(nv), weight(nv, 1.f);
-  std::vector<uint32_t> color(nv, 0u);
-  for (int z = 0; z < 48; ++z)
-    for (int y = 0; y < 48; ++y)
-      for (int x = 0; x < 48; ++x) {
-        const float px = -0.24f + 0.01f * x, py = -0.24f + 0.01f * y, pz = 0.76f + 0.01f * z;
-        const float d = std::sqrt(px * px + py * py + (pz - 1.f) * (pz - 1.f)) - 0.2f;
-        tsdf[x + 48 * (y + 48 * z)] = std::max(-1.f, std::min(1.f, d / vol.truncation));
-      }
-  cpu::McMesh mc = cpu::MarchingCubes(tsdf.data(), weight.data(), color.data(), vol);
+  const test::AnalyticVolume sphere = test::MakeSphereVolume(
+      test::TestVolume(48, 48, 48, 0.01f, VD_F4(-0.24f, -0.24f, 0.76f, 1.f)), 0.f, 0.f, 1.f, 0.2f);
+  const VdVolume& vol = sphere.vol;
+  cpu::McMesh mc = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), vol);
   std::vector<vd_float4> world(mc.positions_grid.size());
   for (size_t i = 0; i < world.size(); ++i)
     world[i] = VD_F4(vol.origin.x + 0.01f * mc.positions_grid[i].x, vol.origin.y + 0.01f * mc.positions_grid[i].y,

@@ -9,6 +9,7 @@
 
 #include "core/hierarchy.h"
 #include "cpu_ref/cpu_ref.h"
+#include "sphere_volume.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -25,27 +26,14 @@ struct Fixture {
   cpu::ActiveSet fine;
 };
 
+// A sphere of 11.4 voxels around grid point (20.3, 17.6, 15.2).
 Fixture MakeSphere() {
   Fixture f;
-  VdVolume& vol = f.vol;
-  vol.dim_x = 41;
-  vol.dim_y = 36;
-  vol.dim_z = 30;
-  vol.voxel_size = 0.01f;
-  vol.origin = VD_F4(-0.2f, -0.18f, 0.8f, 1.f);
-  vol.truncation = 0.04f;
-  vol.max_weight = 64;
-  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
-  std::vector<float> tsdf(n), weight(n, 1.f);
-  std::vector<uint32_t> color(n, 0u);
-  for (int z = 0; z < vol.dim_z; ++z)
-    for (int y = 0; y < vol.dim_y; ++y)
-      for (int x = 0; x < vol.dim_x; ++x) {
-        const float d = std::sqrt(float((x - 20.3f) * (x - 20.3f) + (y - 17.6f) * (y - 17.6f) + (z - 15.2f) * (z - 15.2f))) - 11.4f;
-        tsdf[x + size_t(vol.dim_x) * (y + size_t(vol.dim_y) * z)] = std::clamp(d / 4.f, -1.f, 1.f);
-      }
-  f.mesh = cpu::MarchingCubes(tsdf.data(), weight.data(), color.data(), vol);
-  f.fine = cpu::BuildActiveSet(f.mesh.codes.data(), vol);
+  const test::AnalyticVolume sphere = test::MakeSphereVolume(
+      test::TestVolume(41, 36, 30, 0.01f, VD_F4(-0.2f, -0.18f, 0.8f, 1.f)), 0.003f, -0.004f, 0.952f, 0.114f);
+  f.vol = sphere.vol;
+  f.mesh = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), f.vol);
+  f.fine = cpu::BuildActiveSet(f.mesh.codes.data(), f.vol);
   return f;
 }
 

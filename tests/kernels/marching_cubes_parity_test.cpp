@@ -8,37 +8,24 @@
 #include "core/device_ops.h"
 #include "core/mc_table.h"
 #include "cpu_ref/cpu_ref.h"
+#include "sphere_volume.h"
 #include "test_scenes.h"
 
 namespace vd {
 namespace {
 
-struct Grid {
-  VdVolume vol{};
-  std::vector<float> tsdf, weight;
-  std::vector<uint32_t> color;
-};
+using Grid = test::AnalyticVolume;
 
-// Truncated signed distance of an analytic shape, normalised by the truncation, all observed.
-template <typename F>
-Grid AnalyticGrid(int dim, float voxel, F sdf) {
-  Grid g;
-  g.vol.dim_x = g.vol.dim_y = g.vol.dim_z = dim;
-  g.vol.voxel_size = voxel;
-  g.vol.origin = VD_F4(0, 0, 0, 1);
-  g.vol.truncation = 4 * voxel;
-  g.vol.max_weight = 64;
-  const size_t n = size_t(dim) * dim * dim;
-  g.tsdf.resize(n);
-  g.weight.assign(n, 1.f);
-  g.color.resize(n);
-  for (int z = 0; z < dim; ++z)
-    for (int y = 0; y < dim; ++y)
-      for (int x = 0; x < dim; ++x) {
-        const size_t i = x + size_t(dim) * (y + size_t(dim) * z);
-        g.tsdf[i] = std::clamp(sdf(x * voxel, y * voxel, z * voxel) / g.vol.truncation, -1.f, 1.f);
-        g.color[i] = vd_pack_rgba(float(x * 4 % 256), float(y * 4 % 256), float(z * 4 % 256), 10.f);
-      }
+// dim^3 voxels from the origin.
+VdVolume Cube(int dim, float voxel) { return test::TestVolume(dim, dim, dim, voxel, VD_F4(0, 0, 0, 1)); }
+
+// A colour pattern on the fixture's volume, so the parity test compares vertex colours too.
+Grid Coloured(Grid g) {
+  for (int z = 0; z < g.vol.dim_z; ++z)
+    for (int y = 0; y < g.vol.dim_y; ++y)
+      for (int x = 0; x < g.vol.dim_x; ++x)
+        g.color[x + size_t(g.vol.dim_x) * (y + size_t(g.vol.dim_y) * z)] =
+            vd_pack_rgba(float(x * 4 % 256), float(y * 4 % 256), float(z * 4 % 256), 10.f);
   return g;
 }
 
@@ -99,9 +86,7 @@ TEST(McTableTest, EveryConfigurationFitsAndComplementsAgree) {
 
 TEST(MarchingCubesTest, SphereIsAccurateClosedAndGenusZero) {
   const float voxel = 0.01f, r = 0.2f, c = 0.32f;
-  Grid g = AnalyticGrid(64, voxel, [&](float x, float y, float z) {
-    return std::sqrt((x - c) * (x - c) + (y - c) * (y - c) + (z - c) * (z - c)) - r;
-  });
+  Grid g = Coloured(test::MakeSphereVolume(Cube(64, voxel), c, c, c, r));
   const cpu::McMesh m = cpu::MarchingCubes(g.tsdf.data(), g.weight.data(), g.color.data(), g.vol);
   ASSERT_GT(m.triangles.size(), 3000u);
   double worst = 0;
@@ -139,7 +124,7 @@ TEST(MarchingCubesTest, PlaneIsFlat) {
   // A tilted plane through the grid; only the cells it crosses produce triangles.
   const float norm = std::sqrt(1.f + 0.09f + 0.04f);
   auto plane = [&](float x, float y, float z) { return (z - 0.1035f - 0.3f * x - 0.2f * y) / norm; };
-  Grid g = AnalyticGrid(40, voxel, plane);
+  Grid g = Coloured(test::MakeAnalyticVolume(Cube(40, voxel), plane));
   const cpu::McMesh m = cpu::MarchingCubes(g.tsdf.data(), g.weight.data(), g.color.data(), g.vol);
   ASSERT_GT(m.triangles.size(), 1000u);
   double worst = 0;
@@ -152,9 +137,7 @@ TEST(MarchingCubesTest, PlaneIsFlat) {
 
 TEST(MarchingCubesTest, UnobservedCornersProduceNoTriangles) {
   const float voxel = 0.01f, r = 0.2f, c = 0.32f;
-  Grid g = AnalyticGrid(64, voxel, [&](float x, float y, float z) {
-    return std::sqrt((x - c) * (x - c) + (y - c) * (y - c) + (z - c) * (z - c)) - r;
-  });
+  Grid g = Coloured(test::MakeSphereVolume(Cube(64, voxel), c, c, c, r));
   // Forget the half with x > c: the mesh becomes a hemisphere with an open rim, still welded.
   for (int z = 0; z < 64; ++z)
     for (int y = 0; y < 64; ++y)
@@ -170,11 +153,11 @@ TEST(MarchingCubesParityTest, DeviceMatchesCpuOnSphereAndTorus) {
   VD_REQUIRE_OCL(ctx);
   const float voxel = 0.01f, c = 0.32f;
   for (int shape = 0; shape < 2; ++shape) {
-    Grid g = AnalyticGrid(64, voxel, [&](float x, float y, float z) {
-      if (shape == 0) return std::sqrt((x - c) * (x - c) + (y - c) * (y - c) + (z - c) * (z - c)) - 0.2f;
-      const float q = std::sqrt((x - c) * (x - c) + (y - c) * (y - c)) - 0.18f;
-      return std::sqrt(q * q + (z - c) * (z - c)) - 0.07f;
-    });
+    Grid g = Coloured(shape == 0 ? test::MakeSphereVolume(Cube(64, voxel), c, c, c, 0.2f)
+                                 : test::MakeAnalyticVolume(Cube(64, voxel), [&](float x, float y, float z) {
+                                     const float q = std::sqrt((x - c) * (x - c) + (y - c) * (y - c)) - 0.18f;
+                                     return std::sqrt(q * q + (z - c) * (z - c)) - 0.07f;
+                                   }));
     const cpu::McMesh ref = cpu::MarchingCubes(g.tsdf.data(), g.weight.data(), g.color.data(), g.vol);
     const cpu::McMesh dev = RunOcl(ctx, g);
     ASSERT_EQ(dev.positions_grid.size(), ref.positions_grid.size());

@@ -12,6 +12,7 @@
 #include "core/solver.h"
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/ocl.h"
+#include "sphere_volume.h"
 
 namespace vd {
 namespace {
@@ -27,22 +28,13 @@ struct Problem {
 // smooth displacement along the vertex normals (point-to-plane targets).
 Problem MakeProblem(float base_shift = 0.003f) {
   Problem p;
-  VdVolume& vol = p.vol;
-  vol.dim_x = vol.dim_y = vol.dim_z = 24;
-  vol.voxel_size = 0.01f;
-  vol.origin = VD_F4(-0.12f, -0.12f, 0.88f, 1.f);
-  vol.truncation = 0.04f;
-  vol.max_weight = 64.f;
-  const size_t n = 24 * 24 * 24;
-  std::vector<float> tsdf(n), weight(n, 1.f);
-  std::vector<uint32_t> color(n, 0u);
-  for (int z = 0; z < 24; ++z)
-    for (int y = 0; y < 24; ++y)
-      for (int x = 0; x < 24; ++x) {
-        const float d = std::sqrt(float((x - 12) * (x - 12) + (y - 11.5f) * (y - 11.5f) + (z - 12.3f) * (z - 12.3f))) - 7.2f;
-        tsdf[x + 24 * (y + 24 * z)] = std::clamp(d / 4.f, -1.f, 1.f);
-      }
-  const cpu::McMesh mc = cpu::MarchingCubes(tsdf.data(), weight.data(), color.data(), vol);
+  // Radius 7.2 voxels around grid point (12, 11.5, 12.3).
+  const test::AnalyticVolume sphere = test::MakeSphereVolume(
+      test::TestVolume(24, 24, 24, 0.01f, VD_F4(-0.12f, -0.12f, 0.88f, 1.f)), 0.f, -0.005f, 1.003f, 0.072f);
+  p.vol = sphere.vol;
+  const VdVolume& vol = p.vol;
+  const size_t n = sphere.tsdf.size();
+  const cpu::McMesh mc = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), vol);
   const cpu::ActiveSet as = cpu::BuildActiveSet(mc.codes.data(), vol);
   p.list = as.list;
   p.compact = as.compact;

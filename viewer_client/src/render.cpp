@@ -7,6 +7,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "shared/raster_math.h"
+
 namespace vd {
 namespace {
 
@@ -16,9 +18,111 @@ constexpr uint8_t kGrey = 200;
 constexpr float kMinZoom = 1e-3f;
 constexpr float kMaxZoom = 1e3f;
 
-// Twice the signed area of (a, b, p): positive when p lies left of a->b.
-inline double Edge(const Eigen::Vector2d& a, const Eigen::Vector2d& b, double px, double py) {
-  return (b.x() - a.x()) * (py - a.y()) - (b.y() - a.y()) * (px - a.x());
+// The mesh seen from the (orbited) live camera: camera-space vertices, the fitted focal length and
+// principal point, and how far the eye moved back.
+struct View {
+  std::vector<Eigen::Vector3d> p;
+  double f = 1.0, cx = 0.0, cy = 0.0;
+  double eye_offset_z = 0.0;
+};
+
+View OrbitAndFit(const TriangleMesh& mesh, const RenderOptions& options, const ViewParams& params) {
+  // Orbit about the bounding-box centre; the unrotated view is exactly the live camera's.
+  float mn[3], mx[3];
+  mesh.Bounds(mn, mx);
+  const Eigen::Vector3d centre(0.5 * (mn[0] + mx[0]), 0.5 * (mn[1] + mx[1]), 0.5 * (mn[2] + mx[2]));
+  const double radius = std::max(1e-6, 0.5 * Eigen::Vector3d(mx[0] - mn[0], mx[1] - mn[1], mx[2] - mn[2]).norm());
+  const Eigen::Matrix3d rotation = (Eigen::AngleAxisd(params.pitch, Eigen::Vector3d::UnitX()) *
+                                    Eigen::AngleAxisd(params.yaw, Eigen::Vector3d::UnitY()))
+                                       .toRotationMatrix();
+  View view;
+  view.p.resize(mesh.num_vertices());
+  double z_min = std::numeric_limits<double>::infinity();
+  for (size_t i = 0; i < view.p.size(); ++i) {
+    const Eigen::Vector3d v(mesh.positions[3 * i], mesh.positions[3 * i + 1], mesh.positions[3 * i + 2]);
+    view.p[i] = rotation * (v - centre) + centre;
+    z_min = std::min(z_min, view.p[i].z());
+  }
+  // A mesh reaching behind the camera (a canonical mesh in odd coordinates, an orbit that swings
+  // it round) is seen from further back instead: the bounding sphere then lies in front.
+  if (z_min < std::max(1e-4, 1e-2 * radius)) {
+    view.eye_offset_z = 2.0 * radius - centre.z();
+    for (auto& v : view.p) v.z() += view.eye_offset_z;
+  }
+  // The focal length that fits the projected vertices' bounding box into the image minus the
+  // margins, the principal point that centres it.
+  double a_min = std::numeric_limits<double>::infinity(), a_max = -a_min, b_min = a_min, b_max = -a_min;
+  for (const auto& v : view.p) {
+    a_min = std::min(a_min, v.x() / v.z());
+    a_max = std::max(a_max, v.x() / v.z());
+    b_min = std::min(b_min, v.y() / v.z());
+    b_max = std::max(b_max, v.y() / v.z());
+  }
+  const double usable = 1.0 - 2.0 * options.margin;
+  const double span_a = std::max(a_max - a_min, 1e-9), span_b = std::max(b_max - b_min, 1e-9);
+  view.f = std::min(options.width * usable / span_a, options.height * usable / span_b) * params.zoom;
+  view.cx = 0.5 * options.width - view.f * 0.5 * (a_min + a_max);
+  view.cy = 0.5 * options.height - view.f * 0.5 * (b_min + b_max);
+  return view;
+}
+
+// Smooth shading: area-weighted vertex normals (Draco meshes arrive without normals).
+std::vector<Eigen::Vector3d> VertexNormals(const std::vector<Eigen::Vector3d>& p, const std::vector<int32_t>& tris) {
+  std::vector<Eigen::Vector3d> normal(p.size(), Eigen::Vector3d::Zero());
+  for (size_t t = 0; t < tris.size(); t += 3) {
+    const Eigen::Vector3d face = (p[tris[t + 1]] - p[tris[t]]).cross(p[tris[t + 2]] - p[tris[t]]);
+    for (int k = 0; k < 3; ++k) normal[tris[t + k]] += face;
+  }
+  for (auto& nv : normal) {
+    const double len = nv.norm();
+    nv = len > 0 ? Eigen::Vector3d(nv / len) : Eigen::Vector3d(0, 0, -1);
+  }
+  return normal;
+}
+
+// Snapped corners; ok = false for a vertex projecting beyond VD_RASTER_MAX_PX. The viewer's pixel
+// centres sit at half-integer coordinates, the shared math's at integers: shift by half a pixel.
+struct Corner {
+  VdRasterCorner c{};
+  bool ok = false;
+};
+
+std::vector<Corner> Project(const View& view) {
+  std::vector<Corner> corners(view.p.size());
+  for (size_t i = 0; i < view.p.size(); ++i) {
+    const double u = view.f * view.p[i].x() / view.p[i].z() + view.cx - 0.5;
+    const double v = view.f * view.p[i].y() / view.p[i].z() + view.cy - 0.5;
+    if (!(std::fabs(u) < VD_RASTER_MAX_PX && std::fabs(v) < VD_RASTER_MAX_PX)) continue;
+    corners[i].c = VdRasterCorner{std::llround(u * VD_RASTER_SUB_SCALE), std::llround(v * VD_RASTER_SUB_SCALE),
+                                  static_cast<float>(view.p[i].z())};
+    corners[i].ok = true;
+  }
+  return corners;
+}
+
+VdRasterTri Setup(const std::vector<Corner>& corners, const int32_t* tri, int w, int h) {
+  if (!(corners[tri[0]].ok && corners[tri[1]].ok && corners[tri[2]].ok)) return vd_raster_tri_empty();
+  return vd_raster_tri(corners[tri[0]].c, corners[tri[1]].c, corners[tri[2]].c, VdRasterBox{0, 0, w - 1, h - 1});
+}
+
+// The triangle seen at each pixel (-1: none). The z-buffer holds 1 / z; the first triangle wins ties.
+std::vector<int32_t> Visibility(const std::vector<Corner>& corners, const std::vector<int32_t>& tris, int w, int h) {
+  std::vector<float> inv_depth(static_cast<size_t>(w) * h, 0.f);
+  std::vector<int32_t> visible(inv_depth.size(), -1);
+  for (size_t t = 0; t < tris.size() / 3; ++t) {
+    const VdRasterTri r = Setup(corners, &tris[3 * t], w, h);
+    for (int y = r.box.y0; y <= r.box.y1; ++y)
+      for (int x = r.box.x0; x <= r.box.x1; ++x) {
+        vd_long w0, w1, w2;
+        if (!vd_raster_cover(r, x, y, &w0, &w1, &w2)) continue;
+        const size_t idx = static_cast<size_t>(y) * w + x;
+        const float inv_z = vd_raster_inv_depth(r, w0, w1, w2);
+        if (inv_z <= inv_depth[idx]) continue;
+        inv_depth[idx] = inv_z;
+        visible[idx] = static_cast<int32_t>(t);
+      }
+  }
+  return visible;
 }
 
 }  // namespace
@@ -67,16 +171,16 @@ Status RenderOptions::Validate() const {
 }
 
 StatusOr<RenderResult> RenderMesh(const TriangleMesh& mesh, const std::vector<uint8_t>& rgb,
-                                  const RenderOptions& options, const ViewParams& view) {
+                                  const RenderOptions& options, const ViewParams& params) {
   VD_RETURN_IF_ERROR(options.Validate());
   VD_RETURN_IF_ERROR(mesh.Validate());
   if (!rgb.empty() && rgb.size() != mesh.positions.size())
     return InvalidArgument("RenderMesh: " + std::to_string(rgb.size() / 3) + " colours for " +
                            std::to_string(mesh.num_vertices()) + " vertices");
-  if (!std::isfinite(view.yaw) || !std::isfinite(view.pitch) || !std::isfinite(view.zoom) || view.zoom < kMinZoom ||
-      view.zoom > kMaxZoom)
+  if (!std::isfinite(params.yaw) || !std::isfinite(params.pitch) || !std::isfinite(params.zoom) ||
+      params.zoom < kMinZoom || params.zoom > kMaxZoom)
     return InvalidArgument("ViewParams: yaw and pitch must be finite and zoom within [0.001, 1000], got zoom = " +
-                           std::to_string(view.zoom));
+                           std::to_string(params.zoom));
 
   const int w = options.width;
   const int h = options.height;
@@ -86,138 +190,37 @@ StatusOr<RenderResult> RenderMesh(const TriangleMesh& mesh, const std::vector<ui
   result.intrinsics = Intrinsics{1.f, 1.f, w / 2.f, h / 2.f, w, h};
   if (mesh.empty()) return result;
 
-  // Orbit about the bounding-box centre; the unrotated view is exactly the live camera's.
-  float mn[3], mx[3];
-  mesh.Bounds(mn, mx);
-  const Eigen::Vector3d centre(0.5 * (mn[0] + mx[0]), 0.5 * (mn[1] + mx[1]), 0.5 * (mn[2] + mx[2]));
-  const double radius = std::max(
-      1e-6, 0.5 * Eigen::Vector3d(mx[0] - mn[0], mx[1] - mn[1], mx[2] - mn[2]).norm());
-  const Eigen::Matrix3d rotation = (Eigen::AngleAxisd(view.pitch, Eigen::Vector3d::UnitX()) *
-                                    Eigen::AngleAxisd(view.yaw, Eigen::Vector3d::UnitY()))
-                                       .toRotationMatrix();
-  const size_t n = mesh.num_vertices();
-  std::vector<Eigen::Vector3d> p(n);
-  double z_min = std::numeric_limits<double>::infinity();
-  for (size_t i = 0; i < n; ++i) {
-    const Eigen::Vector3d v(mesh.positions[3 * i], mesh.positions[3 * i + 1], mesh.positions[3 * i + 2]);
-    p[i] = rotation * (v - centre) + centre;
-    z_min = std::min(z_min, p[i].z());
-  }
-  // A mesh reaching behind the camera (a canonical mesh in odd coordinates, an orbit that swings
-  // it round) is seen from further back instead: the bounding sphere then lies in front.
-  const double near = std::max(1e-4, 1e-2 * radius);
-  if (z_min < near) {
-    const double offset = 2.0 * radius - centre.z();
-    for (auto& v : p) v.z() += offset;
-    result.eye_offset_z = static_cast<float>(offset);
-  }
-
-  // Intrinsics: the focal length that fits the projected vertices' bounding box into the image
-  // minus the margins, the principal point that centres it.
-  double a_min = std::numeric_limits<double>::infinity(), a_max = -a_min, b_min = a_min, b_max = -a_min;
-  for (const auto& v : p) {
-    const double a = v.x() / v.z(), b = v.y() / v.z();
-    a_min = std::min(a_min, a);
-    a_max = std::max(a_max, a);
-    b_min = std::min(b_min, b);
-    b_max = std::max(b_max, b);
-  }
-  const double usable = 1.0 - 2.0 * options.margin;
-  const double span_a = std::max(a_max - a_min, 1e-9), span_b = std::max(b_max - b_min, 1e-9);
-  const double f = std::min(w * usable / span_a, h * usable / span_b) * view.zoom;
-  const double cx = 0.5 * w - f * 0.5 * (a_min + a_max);
-  const double cy = 0.5 * h - f * 0.5 * (b_min + b_max);
-  result.intrinsics = Intrinsics{static_cast<float>(f), static_cast<float>(f), static_cast<float>(cx),
-                                 static_cast<float>(cy), w, h};
-
-  // Smooth shading: area-weighted vertex normals (Draco meshes arrive without normals).
-  std::vector<Eigen::Vector3d> normal(n, Eigen::Vector3d::Zero());
-  const size_t num_tri = mesh.num_triangles();
-  for (size_t t = 0; t < num_tri; ++t) {
-    const int32_t* idx = &mesh.triangles[3 * t];
-    const Eigen::Vector3d face = (p[idx[1]] - p[idx[0]]).cross(p[idx[2]] - p[idx[0]]);
-    for (int k = 0; k < 3; ++k) normal[idx[k]] += face;
-  }
-  for (auto& nv : normal) {
-    const double len = nv.norm();
-    nv = len > 0 ? Eigen::Vector3d(nv / len) : Eigen::Vector3d(0, 0, -1);
-  }
-
-  std::vector<Eigen::Vector2d> s(n);
-  for (size_t i = 0; i < n; ++i) s[i] = Eigen::Vector2d(f * p[i].x() / p[i].z() + cx, f * p[i].y() / p[i].z() + cy);
-
-  // Pass 1, visibility: the z-buffer holds 1/z (linear in screen space; 0 means empty) and the
-  // triangle seen at each pixel. Shading waits for pass 2 so hidden surfaces cost no shading.
-  std::vector<float> inv_depth(static_cast<size_t>(w) * h, 0.f);
-  std::vector<int32_t> visible(static_cast<size_t>(w) * h, -1);
-  for (size_t t = 0; t < num_tri; ++t) {
-    const int32_t i0 = mesh.triangles[3 * t], i1 = mesh.triangles[3 * t + 1], i2 = mesh.triangles[3 * t + 2];
-    const double area = Edge(s[i0], s[i1], s[i2].x(), s[i2].y());
-    if (!(std::abs(area) > 1e-12)) continue;
-    // Clamp in floating point before converting, so far-off vertices cannot overflow an int.
-    const double u_lo = std::min({s[i0].x(), s[i1].x(), s[i2].x()});
-    const double u_hi = std::max({s[i0].x(), s[i1].x(), s[i2].x()});
-    const double v_lo = std::min({s[i0].y(), s[i1].y(), s[i2].y()});
-    const double v_hi = std::max({s[i0].y(), s[i1].y(), s[i2].y()});
-    const int x0 = static_cast<int>(std::clamp(std::floor(u_lo - 0.5), 0.0, static_cast<double>(w)));
-    const int x1 = static_cast<int>(std::clamp(std::ceil(u_hi - 0.5), -1.0, static_cast<double>(w - 1)));
-    const int y0 = static_cast<int>(std::clamp(std::floor(v_lo - 0.5), 0.0, static_cast<double>(h)));
-    const int y1 = static_cast<int>(std::clamp(std::ceil(v_hi - 0.5), -1.0, static_cast<double>(h - 1)));
-    if (x0 > x1 || y0 > y1) continue;
-    const double inv_area = 1.0 / area;
-    const double iz0 = 1.0 / p[i0].z(), iz1 = 1.0 / p[i1].z(), iz2 = 1.0 / p[i2].z();
-    // Barycentric weights are affine in the pixel position: step them along the row.
-    const double dw0 = -(s[i2].y() - s[i1].y()) * inv_area, dw1 = -(s[i0].y() - s[i2].y()) * inv_area;
-    for (int y = y0; y <= y1; ++y) {
-      const double py = y + 0.5, px0 = x0 + 0.5;
-      double w0 = Edge(s[i1], s[i2], px0, py) * inv_area;
-      double w1 = Edge(s[i2], s[i0], px0, py) * inv_area;
-      float* depth_row = &inv_depth[static_cast<size_t>(y) * w];
-      int32_t* visible_row = &visible[static_cast<size_t>(y) * w];
-      for (int x = x0; x <= x1; ++x, w0 += dw0, w1 += dw1) {
-        const double w2 = 1.0 - w0 - w1;
-        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-        const float inv_z = static_cast<float>(w0 * iz0 + w1 * iz1 + w2 * iz2);
-        if (inv_z <= depth_row[x]) continue;
-        depth_row[x] = inv_z;
-        visible_row[x] = static_cast<int32_t>(t);
-      }
-    }
-  }
-
-  // Pass 2, shading of the visible surface only.
-  const double ambient = options.ambient;
+  const View view = OrbitAndFit(mesh, options, params);
+  result.eye_offset_z = static_cast<float>(view.eye_offset_z);
+  result.intrinsics = Intrinsics{static_cast<float>(view.f), static_cast<float>(view.f), static_cast<float>(view.cx),
+                                 static_cast<float>(view.cy), w, h};
+  const std::vector<Eigen::Vector3d> normal = VertexNormals(view.p, mesh.triangles);
+  const std::vector<Corner> corners = Project(view);
+  // Shading waits for the visibility pass, so hidden surfaces cost no shading.
+  const std::vector<int32_t> visible = Visibility(corners, mesh.triangles, w, h);
   for (int y = 0; y < h; ++y) {
-    auto* row = result.image.ptr<cv::Vec3b>(y);
-    float* depth_row = result.depth.ptr<float>(y);
-    const double py = y + 0.5;
     for (int x = 0; x < w; ++x) {
       const int32_t t = visible[static_cast<size_t>(y) * w + x];
       if (t < 0) continue;
-      const int32_t i0 = mesh.triangles[3 * t], i1 = mesh.triangles[3 * t + 1], i2 = mesh.triangles[3 * t + 2];
-      const double px = x + 0.5;
-      const double inv_area = 1.0 / Edge(s[i0], s[i1], s[i2].x(), s[i2].y());
-      // Clamped: stepping in pass 1 can accept a pixel a rounding error outside an edge.
-      const double w0 = std::max(0.0, Edge(s[i1], s[i2], px, py) * inv_area);
-      const double w1 = std::max(0.0, Edge(s[i2], s[i0], px, py) * inv_area);
-      const double w2 = std::max(0.0, 1.0 - w0 - w1);
-      const double iz0 = w0 / p[i0].z(), iz1 = w1 / p[i1].z(), iz2 = w2 / p[i2].z();
-      const double inv_z = iz0 + iz1 + iz2;
-      if (!(inv_z > 0)) continue;
-      // Perspective-correct weights for the vertex attributes.
-      const double b0 = iz0 / inv_z, b1 = iz1 / inv_z, b2 = iz2 / inv_z;
-      const Eigen::Vector3d nrm = (b0 * normal[i0] + b1 * normal[i1] + b2 * normal[i2]).normalized();
-      const Eigen::Vector3d ray = Eigen::Vector3d((px - cx) / f, (py - cy) / f, 1.0).normalized();
+      const int32_t* tri = &mesh.triangles[3 * t];
+      const VdRasterTri r = Setup(corners, tri, w, h);
+      vd_long w0, w1, w2;
+      vd_raster_cover(r, x, y, &w0, &w1, &w2);
+      const vd_float4 b = vd_raster_bary(r, w0, w1, w2);
+      const Eigen::Vector3d nrm = (b.x * normal[tri[0]] + b.y * normal[tri[1]] + b.z * normal[tri[2]]).normalized();
+      const Eigen::Vector3d ray =
+          Eigen::Vector3d((x + 0.5 - view.cx) / view.f, (y + 0.5 - view.cy) / view.f, 1.0).normalized();
       // Headlight: the light sits at the eye, so brightness is |cos| between normal and ray
       // (two-sided: marching-cubes surfaces seen from behind at their borders stay lit).
       const double lambert = std::isfinite(nrm.x()) ? std::abs(nrm.dot(ray)) : 1.0;
-      const double shade = ambient + (1.0 - ambient) * lambert;
-      double rgb_px[3] = {kGrey, kGrey, kGrey};
-      if (!rgb.empty())
-        for (int c = 0; c < 3; ++c) rgb_px[c] = b0 * rgb[3 * i0 + c] + b1 * rgb[3 * i1 + c] + b2 * rgb[3 * i2 + c];
-      for (int c = 0; c < 3; ++c)
-        row[x][2 - c] = static_cast<uint8_t>(std::clamp(rgb_px[c] * shade + 0.5, 0.0, 255.0));
-      depth_row[x] = static_cast<float>(1.0 / inv_z);
+      const double shade = options.ambient + (1.0 - options.ambient) * lambert;
+      cv::Vec3b& px = result.image.at<cv::Vec3b>(y, x);
+      for (int c = 0; c < 3; ++c) {
+        const double value =
+            rgb.empty() ? kGrey : b.x * rgb[3 * tri[0] + c] + b.y * rgb[3 * tri[1] + c] + b.z * rgb[3 * tri[2] + c];
+        px[2 - c] = static_cast<uint8_t>(std::clamp(value * shade + 0.5, 0.0, 255.0));
+      }
+      result.depth.at<float>(y, x) = 1.f / vd_raster_inv_depth(r, w0, w1, w2);
     }
   }
   result.covered_pixels = cv::countNonZero(result.depth);

@@ -2,11 +2,12 @@
  * Two passes per triangle keep it deterministic with 32-bit atomics only: the first keeps the
  * nearest depth per pixel (positive floats order like their bit patterns), the second writes the
  * smallest id among the triangles that produced exactly that depth. A per-pixel pass then
- * interpolates position and normal with perspective-correct barycentrics. Pixel centres sit at
- * integer coordinates; a pixel is covered when its centre is inside or on the triangle's edge. */
+ * interpolates position and normal with perspective-correct barycentrics. Coverage, depth and
+ * barycentrics come from raster_math.h: pixel centres at integer coordinates, top-left rule. */
 #ifndef VD_RASTER_H
 #define VD_RASTER_H
 
+#include "raster_math.h"
 #include "vd_types.h"
 
 #define VD_RASTER_EMPTY 0xFFFFFFFFu
@@ -15,71 +16,50 @@
 /* A triangle covering more pixels than this bounding-box area is skipped as degenerate. */
 #define VD_RASTER_MAX_BOX 65536
 
-typedef struct {
-  /* Screen positions and 1 / z of the three corners. */
-  float u0, v0, u1, v1, u2, v2;
-  float iz0, iz1, iz2;
-  float inv_area;
-  int x0, y0, x1, y1;
-  int valid;
-} VdRasterTri;
+/* Camera point p as a snapped corner; 0 when it is nearer than VD_RASTER_NEAR or projects too far out. */
+VD_INLINE int vd_raster_corner(VdCamera cam, vd_float4 p, VdRasterCorner* c) {
+  if (p.z < VD_RASTER_NEAR) return 0;
+  const float u = vd_project_u(cam, p), v = vd_project_v(cam, p);
+  if (!(fabs(u) < VD_RASTER_MAX_PX && fabs(v) < VD_RASTER_MAX_PX)) return 0;
+  c->x = (vd_long)round(u * VD_RASTER_SUB_SCALE);
+  c->y = (vd_long)round(v * VD_RASTER_SUB_SCALE);
+  c->z = p.z;
+  return 1;
+}
 
 VD_INLINE VdRasterTri vd_raster_setup(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const int* tris, int t, VdPose T,
                                       VdCamera cam) {
-  VdRasterTri r;
-  r.valid = 0;
-  vd_float4 p0 = vd_pose_apply(T, pos[tris[3 * t + 0]]);
-  vd_float4 p1 = vd_pose_apply(T, pos[tris[3 * t + 1]]);
-  vd_float4 p2 = vd_pose_apply(T, pos[tris[3 * t + 2]]);
-  if (p0.z < VD_RASTER_NEAR || p1.z < VD_RASTER_NEAR || p2.z < VD_RASTER_NEAR) return r;
-  r.u0 = vd_project_u(cam, p0);
-  r.v0 = vd_project_v(cam, p0);
-  r.u1 = vd_project_u(cam, p1);
-  r.v1 = vd_project_v(cam, p1);
-  r.u2 = vd_project_u(cam, p2);
-  r.v2 = vd_project_v(cam, p2);
-  r.iz0 = 1.0f / p0.z;
-  r.iz1 = 1.0f / p1.z;
-  r.iz2 = 1.0f / p2.z;
-  float area = (r.u1 - r.u0) * (r.v2 - r.v0) - (r.v1 - r.v0) * (r.u2 - r.u0);
-  if (fabs(area) < 1e-12f) return r;
-  r.inv_area = 1.0f / area;
-  float umin = fmin(r.u0, fmin(r.u1, r.u2)), umax = fmax(r.u0, fmax(r.u1, r.u2));
-  float vmin = fmin(r.v0, fmin(r.v1, r.v2)), vmax = fmax(r.v0, fmax(r.v1, r.v2));
-  if (umax < 0.0f || vmax < 0.0f || umin > (float)(cam.width - 1) || vmin > (float)(cam.height - 1)) return r;
-  r.x0 = vd_max_i((int)ceil(umin), 0);
-  r.y0 = vd_max_i((int)ceil(vmin), 0);
-  r.x1 = vd_min_i((int)floor(umax), cam.width - 1);
-  r.y1 = vd_min_i((int)floor(vmax), cam.height - 1);
-  if (r.x1 < r.x0 || r.y1 < r.y0) return r;
-  if ((r.x1 - r.x0 + 1) * (r.y1 - r.y0 + 1) > VD_RASTER_MAX_BOX) return r;
-  r.valid = 1;
+  VdRasterCorner c0, c1, c2;
+  if (!vd_raster_corner(cam, vd_pose_apply(T, pos[tris[3 * t + 0]]), &c0) ||
+      !vd_raster_corner(cam, vd_pose_apply(T, pos[tris[3 * t + 1]]), &c1) ||
+      !vd_raster_corner(cam, vd_pose_apply(T, pos[tris[3 * t + 2]]), &c2))
+    return vd_raster_tri_empty();
+  VdRasterBox window;
+  window.x0 = 0;
+  window.y0 = 0;
+  window.x1 = cam.width - 1;
+  window.y1 = cam.height - 1;
+  VdRasterTri r = vd_raster_tri(c0, c1, c2, window);
+  if (r.box.x1 >= r.box.x0 && (r.box.x1 - r.box.x0 + 1) * (r.box.y1 - r.box.y0 + 1) > VD_RASTER_MAX_BOX)
+    return vd_raster_tri_empty();
   return r;
 }
 
-/* Screen-space barycentrics of pixel (x, y); returns 0 when outside. */
-VD_INLINE int vd_raster_bary(VdRasterTri r, int x, int y, float* b0, float* b1, float* b2) {
-  float px = (float)x, py = (float)y;
-  *b0 = ((r.u1 - px) * (r.v2 - py) - (r.v1 - py) * (r.u2 - px)) * r.inv_area;
-  *b1 = ((r.u2 - px) * (r.v0 - py) - (r.v2 - py) * (r.u0 - px)) * r.inv_area;
-  *b2 = 1.0f - *b0 - *b1;
-  return *b0 >= 0.0f && *b1 >= 0.0f && *b2 >= 0.0f;
-}
-
-VD_INLINE float vd_raster_depth(VdRasterTri r, float b0, float b1, float b2) {
-  return 1.0f / (b0 * r.iz0 + b1 * r.iz1 + b2 * r.iz2);
+/* Depth of triangle r at pixel (x, y); 0 when r does not cover it. */
+VD_INLINE float vd_raster_pixel_depth(VdRasterTri r, int x, int y) {
+  vd_long w0, w1, w2;
+  if (!vd_raster_cover(r, x, y, &w0, &w1, &w2)) return 0.0f;
+  return 1.0f / vd_raster_inv_depth(r, w0, w1, w2);
 }
 
 /* Pass 1: nearest depth (as uint bits) per pixel. */
 VD_INLINE void vd_raster_depth_triangle(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const int* tris, int t, VdPose T,
                                         VdCamera cam, VD_GLOBAL vd_uint* depth_bits) {
   VdRasterTri r = vd_raster_setup(pos, tris, t, T, cam);
-  if (!r.valid) return;
-  for (int y = r.y0; y <= r.y1; ++y) {
-    for (int x = r.x0; x <= r.x1; ++x) {
-      float b0, b1, b2;
-      if (!vd_raster_bary(r, x, y, &b0, &b1, &b2)) continue;
-      VD_ATOMIC_MIN_U32(&depth_bits[y * cam.width + x], VD_FLOAT_AS_UINT(vd_raster_depth(r, b0, b1, b2)));
+  for (int y = r.box.y0; y <= r.box.y1; ++y) {
+    for (int x = r.box.x0; x <= r.box.x1; ++x) {
+      const float z = vd_raster_pixel_depth(r, x, y);
+      if (z > 0.0f) VD_ATOMIC_MIN_U32(&depth_bits[y * cam.width + x], VD_FLOAT_AS_UINT(z));
     }
   }
 }
@@ -88,13 +68,11 @@ VD_INLINE void vd_raster_depth_triangle(VD_GLOBAL const vd_float4* pos, VD_GLOBA
 VD_INLINE void vd_raster_id_triangle(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const int* tris, int t, VdPose T,
                                      VdCamera cam, VD_GLOBAL const vd_uint* depth_bits, VD_GLOBAL vd_uint* ids) {
   VdRasterTri r = vd_raster_setup(pos, tris, t, T, cam);
-  if (!r.valid) return;
-  for (int y = r.y0; y <= r.y1; ++y) {
-    for (int x = r.x0; x <= r.x1; ++x) {
-      float b0, b1, b2;
-      if (!vd_raster_bary(r, x, y, &b0, &b1, &b2)) continue;
-      int pix = y * cam.width + x;
-      if (VD_FLOAT_AS_UINT(vd_raster_depth(r, b0, b1, b2)) == depth_bits[pix]) VD_ATOMIC_MIN_U32(&ids[pix], (vd_uint)t);
+  for (int y = r.box.y0; y <= r.box.y1; ++y) {
+    for (int x = r.box.x0; x <= r.box.x1; ++x) {
+      const float z = vd_raster_pixel_depth(r, x, y);
+      const int pix = y * cam.width + x;
+      if (z > 0.0f && VD_FLOAT_AS_UINT(z) == depth_bits[pix]) VD_ATOMIC_MIN_U32(&ids[pix], (vd_uint)t);
     }
   }
 }
@@ -111,14 +89,10 @@ VD_INLINE void vd_raster_resolve_pixel(VD_GLOBAL const vd_float4* pos, VD_GLOBAL
   *bary = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   if (t == VD_RASTER_EMPTY) return;
   VdRasterTri r = vd_raster_setup(pos, tris, (int)t, T, cam);
-  float b0, b1, b2;
-  vd_raster_bary(r, pix % cam.width, pix / cam.width, &b0, &b1, &b2);
-  /* Perspective-correct weights. */
-  float w0 = b0 * r.iz0, w1 = b1 * r.iz1, w2 = b2 * r.iz2;
-  float inv = 1.0f / (w0 + w1 + w2);
-  w0 *= inv;
-  w1 *= inv;
-  w2 *= inv;
+  vd_long e0, e1, e2;
+  vd_raster_cover(r, pix % cam.width, pix / cam.width, &e0, &e1, &e2);
+  const vd_float4 b = vd_raster_bary(r, e0, e1, e2);
+  const float w0 = b.x, w1 = b.y, w2 = b.z;
   int i0 = tris[3 * t + 0], i1 = tris[3 * t + 1], i2 = tris[3 * t + 2];
   vd_float4 p = pos[i0] * w0 + pos[i1] * w1 + pos[i2] * w2;
   p.w = 1.0f;

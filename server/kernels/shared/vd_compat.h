@@ -13,6 +13,7 @@
 #define VD_KERNEL_SIDE 1
 typedef float4 vd_float4;
 typedef uint vd_uint;
+typedef long vd_long;
 typedef uchar vd_uchar;
 typedef ushort vd_ushort;
 #define VD_F4(x, y, z, w) ((float4)((x), (y), (z), (w)))
@@ -29,6 +30,7 @@ typedef ushort vd_ushort;
 #define VD_CONSTANT static const
 #define VD_INLINE inline
 typedef uint32_t vd_uint;
+typedef int64_t vd_long;
 typedef uint8_t vd_uchar;
 typedef uint16_t vd_ushort;
 
