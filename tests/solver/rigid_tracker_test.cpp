@@ -122,7 +122,7 @@ TEST(RigidTrackerTest, RecoversAKnownPoseFromPointToPlaneData) {
 TEST(RigidTrackerTest, RecoversAKnownPoseFromSparsePairsAlone) {
   const Eigen::Matrix4d truth = MakePose({0.05, 0.02, -0.04}, {-0.02, 0.01, 0.05});
   std::vector<PosePair> pairs;
-  for (const Eigen::Vector3d c : {Eigen::Vector3d(0.1, 0, 1), Eigen::Vector3d(-0.1, 0.1, 1.1),
+  for (const Eigen::Vector3d& c : {Eigen::Vector3d(0.1, 0, 1), Eigen::Vector3d(-0.1, 0.1, 1.1),
                                   Eigen::Vector3d(0, -0.15, 0.9), Eigen::Vector3d(0.05, 0.05, 1.3)})
     pairs.push_back({c, truth.topLeftCorner<3, 3>() * c + truth.topRightCorner<3, 1>()});
   PoseStepParams params;
