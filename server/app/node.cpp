@@ -284,6 +284,12 @@ class Node::Impl {
         const double span = std::chrono::duration<double>(process_times_.back() - process_times_.front()).count();
         if (span > 0) st.fps = float((process_times_.size() - 1) / span);
       }
+      if (!latencies_ms_.empty()) {
+        const std::vector<double> window(latencies_ms_.begin(), latencies_ms_.end());
+        st.latency_ms_last = float(window.back());
+        st.latency_ms_p50 = float(Percentile(window, 0.5));
+        st.latency_ms_p95 = float(Percentile(window, 0.95));
+      }
       st.active_voxels = active_voxels_;
       st.dense_correspondences = dense_;
       st.sparse_correspondences = sparse_;
@@ -344,7 +350,16 @@ class Node::Impl {
     KeepMeshes(*result, frame.seq);
     lock.unlock();
     PublishMeshes(false);
+    RecordLatency(frame.utime);
     PublishStatus();
+  }
+
+  // Capture to mesh publication; frames without a capture time (utime 0) are not counted.
+  void RecordLatency(int64_t capture_utime) {
+    if (capture_utime <= 0) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    latencies_ms_.push_back(double(NowUs() - capture_utime) / 1000.0);
+    while (latencies_ms_.size() > kLatencyWindow) latencies_ms_.pop_front();
   }
 
   // The live mesh always; the canonical one when it changed, at most once a second, or on request.
@@ -444,6 +459,10 @@ class Node::Impl {
   StageStats stats_;
   // Completion times of the last 30 frames, for the frame rate.
   std::deque<Clock::time_point> process_times_;
+  // Capture-to-publication latency of the last kLatencyWindow frames, ms (the status's p50/p95:
+  // what a live user waits, including the time a frame queued behind the one being solved).
+  static constexpr size_t kLatencyWindow = 100;
+  std::deque<double> latencies_ms_;
   // The last frame's solve, for a monitor: depth correspondences and SIFT matches (none of either
   // means the solve ran on regularity alone), the energy before and after (a rise means it
   // diverged), the grid points near the surface (what the solve and memory scale with).

@@ -5,6 +5,13 @@
 
 namespace vd {
 
+double Percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0.0;
+  const size_t i = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
+  std::nth_element(v.begin(), v.begin() + i, v.end());
+  return v[i];
+}
+
 std::string StageStats::Json() const {
   std::ostringstream os;
   os.setf(std::ios::fixed);

@@ -10,6 +10,9 @@
 
 namespace vd {
 
+// The q-quantile (0..1, nearest rank) of v; 0 when v is empty.
+double Percentile(std::vector<double> v, double q);
+
 class StageStats {
  public:
   void Add(const StageTimes& t, double total_ms) {
@@ -20,13 +23,7 @@ class StageStats {
   size_t count() const { return totals_.size(); }
   const StageTimes& last() const { return last_; }
   double Mean(int stage) const { return MeanOf(stage < 0 ? totals_ : samples_[stage]); }
-  double Percentile(int stage, double q) const {
-    std::vector<double> v = stage < 0 ? totals_ : samples_[stage];
-    if (v.empty()) return 0.0;
-    const size_t i = std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5));
-    std::nth_element(v.begin(), v.begin() + i, v.end());
-    return v[i];
-  }
+  double Percentile(int stage, double q) const { return vd::Percentile(stage < 0 ? totals_ : samples_[stage], q); }
   // {"stages": {...}, "total": {...}} with mean/median/p95 in ms.
   std::string Json() const;
   // "preprocess 3.1 | raster 2.0 | ..." of the means.

@@ -62,6 +62,7 @@ void PrintStatus(const vdeform::server_status_t& st) {
   std::printf("last_source_id=%s\n", st.last_source_id.c_str());
   i("model_frames", st.model_frames);
   std::printf("fps=%.2f\n", st.fps);
+  std::printf("latency_ms_p50=%.1f\nlatency_ms_p95=%.1f\n", st.latency_ms_p50, st.latency_ms_p95);
   i("active_voxels", st.active_voxels);
   i("dense_correspondences", st.dense_correspondences);
   i("sparse_correspondences", st.sparse_correspondences);

@@ -2,6 +2,8 @@
 // reason and never reach the model, good frames are processed and answered with meshes and
 // status, stale frames are ignored, snapshot paths stay inside the snapshot directory and the
 // snapshot's model is a checkpoint, a signal stops serving without an error.
+#include <chrono>
+
 #include <gtest/gtest.h>
 #include <pthread.h>
 
@@ -145,6 +147,33 @@ TEST_F(NodeTest, NewestFrameWinsAndDropsAreCounted) {
   EXPECT_EQ(st.frames_dropped, 2);
   EXPECT_EQ(st.frames_processed, 1);
   EXPECT_EQ(st.last_processed_seq, 2);
+}
+
+TEST_F(NodeTest, StatusReportsCaptureToMeshLatency) {
+  // A frame without a capture time is not counted.
+  auto untimed = Message(0);
+  untimed.utime = 0;
+  lcm_.publish(kFrameChannel, &untimed);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  EXPECT_EQ(Status().latency_ms_p50, 0.f);
+  // Frames captured 200 ms before they arrive: the latency is that plus the processing.
+  double slowest_ms = 0;
+  for (int64_t seq = 1; seq <= 3; ++seq) {
+    auto m = Message(seq);
+    const auto sent = std::chrono::system_clock::now();
+    m.utime = std::chrono::duration_cast<std::chrono::microseconds>(sent.time_since_epoch()).count() - 200000;
+    lcm_.publish(kFrameChannel, &m);
+    Pump();
+    ASSERT_TRUE(node_->RunOnce());
+    slowest_ms = std::max(
+        slowest_ms, std::chrono::duration<double, std::milli>(std::chrono::system_clock::now() - sent).count());
+  }
+  const auto& st = Status();
+  EXPECT_GE(st.latency_ms_p50, 200.f);
+  EXPECT_GE(st.latency_ms_p95, st.latency_ms_p50);
+  EXPECT_LE(st.latency_ms_p95, 200.f + slowest_ms + 1.f);
+  EXPECT_GE(st.latency_ms_last, 200.f);
 }
 
 TEST_F(NodeTest, SnapshotStaysInsideItsDirectoryAndMeshRequestRepublishes) {

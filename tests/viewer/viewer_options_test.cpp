@@ -1,6 +1,8 @@
 #include <string>
 #include <vector>
 
+#include <algorithm>
+
 #include <gtest/gtest.h>
 
 #include "vd/viewer/display.h"
@@ -153,6 +155,13 @@ TEST(StatusTextTest, StatusLineShowsCountersStateAndStages) {
   EXPECT_NE(StatusLine(stats, odd).find("fuse 3.0"), std::string::npos);
   EXPECT_EQ(ServerStateName(vdeform::server_status_t::STATE_TRACKING_LOST), "TRACKING_LOST");
   EXPECT_EQ(ServerStateName(42), "INVALID(42)");
+  // Latency appears once the server measured one.
+  vdeform::server_status_t timed = TrackingStatus();
+  timed.latency_ms_p50 = 41.4f;
+  timed.latency_ms_p95 = 88.6f;
+  EXPECT_NE(StatusLine(stats, timed).find("28.8 fps lat 41/89 ms | ms:"), std::string::npos) << StatusLine(stats, timed);
+  const auto timed_lines = StatusOverlayLines(stats, timed, ColorMode::kVertex, ColorMode::kVertex);
+  EXPECT_NE(std::find(timed_lines.begin(), timed_lines.end(), "latency p50 41 ms  p95 89 ms"), timed_lines.end());
   EXPECT_EQ(FormatBytes(812), "812 B");
   EXPECT_EQ(FormatBytes(3584), "3.5 KB");
 }

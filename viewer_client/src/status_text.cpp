@@ -51,6 +51,8 @@ std::string StatusLine(const ReceiverStats& stats, const std::optional<vdeform::
      << status->frames_dropped;
   if (status->frames_rejected) os << " rej " << status->frames_rejected;
   os << " " << Fixed(status->fps, 1) << " fps";
+  if (status->latency_ms_p50 > 0)
+    os << " lat " << Fixed(status->latency_ms_p50, 0) << "/" << Fixed(status->latency_ms_p95, 0) << " ms";
   const std::string stages = StageTimes(*status, 16);
   if (!stages.empty()) os << " | ms: " << stages;
   return os.str();
@@ -67,6 +69,9 @@ std::vector<std::string> StatusOverlayLines(const ReceiverStats& stats,
     lines.push_back("frames processed " + std::to_string(status->frames_processed) + "  dropped " +
                     std::to_string(status->frames_dropped) + "  rejected " + std::to_string(status->frames_rejected) +
                     "  " + Fixed(status->fps, 1) + " fps");
+    if (status->latency_ms_p50 > 0)
+      lines.push_back("latency p50 " + Fixed(status->latency_ms_p50, 0) + " ms  p95 " +
+                      Fixed(status->latency_ms_p95, 0) + " ms");
     // Stage times, a few per line so each line fits a 640-pixel window.
     const size_t n = std::min({static_cast<size_t>(std::max(status->num_stages, 0)), status->stage_name.size(),
                                status->stage_ms_last.size()});
