@@ -1,5 +1,7 @@
 #include "shared/correspondence.h"
+#include "shared/features.h"
 #include "shared/icp.h"
+#include "shared/solver.h"
 
 /* Reports the device's view of the shared struct sizes, checked against the host's in a test. */
 __kernel void vd_type_sizes(__global int* out, int vd_items) {
@@ -11,4 +13,8 @@ __kernel void vd_type_sizes(__global int* out, int vd_items) {
   out[4] = (int)sizeof(float4);
   out[5] = (int)sizeof(VdCorrespondence);
   out[6] = (int)sizeof(VdCorrParams);
+  out[7] = (int)sizeof(VdLiftParams);
+  out[8] = (int)sizeof(VdSolverWeights);
+  out[9] = (int)sizeof(VdMatchBest);
+  out[10] = (int)sizeof(VdMat3);
 }

@@ -18,6 +18,7 @@
 
 #include "cpu_ref/procrustes_ref.h"
 #include "ocl/ocl.h"
+#include "ocl/procrustes_ocl.h"
 
 namespace vd {
 namespace {
@@ -135,7 +136,7 @@ int Main(int argc, char** argv) {
   std::vector<vd_float4> cpu_rot(n), ocl_rot(n);
   auto cpu = [&] { cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, cpu_rot.data()); };
   auto ocl = [&] {
-    Check(ctx->Run("vd_procrustes", n, *dn, *dt, *dth, *drot));
+    Check(ocl::kProcrustes(*ctx, n, *dn, *dt, *dth, *drot));
     Check(ctx->Finish());
   };
   cpu();

@@ -7,6 +7,7 @@
 
 #include "cpu_ref/cpu_ref.h"
 #include "cpu_ref/features_ref.h"
+#include "ocl/features_ocl.h"
 #include "shared/features.h"
 #include "test_scenes.h"
 
@@ -64,9 +65,9 @@ TEST(FeatureMatchParityTest, DistancesRowsAndColumnsMatchCpuAndFindPlantedMatche
   auto d_dist = test::ToDevice(ctx, std::vector<float>(dist.size(), -1.f));
   auto d_rows = test::ToDevice(ctx, std::vector<VdMatchBest>(rows.size()));
   auto d_cols = test::ToDevice(ctx, std::vector<VdMatchBest>(cols.size()));
-  ASSERT_TRUE(ctx->Run("vd_match_distances", size_t(n_cand), d_cur, n_cur, d_cand, n_cand, d_dist).ok());
-  ASSERT_TRUE(ctx->Run("vd_match_rows", rows.size(), d_dist, n_cur, n_cand, d_frames, d_rows).ok());
-  ASSERT_TRUE(ctx->Run("vd_match_columns", cols.size(), d_dist, n_cur, n_cand, d_cols).ok());
+  ASSERT_TRUE(ocl::kMatchDistances(*ctx, size_t(n_cand), d_cur, n_cur, d_cand, n_cand, d_dist).ok());
+  ASSERT_TRUE(ocl::kMatchRows(*ctx, rows.size(), d_dist, n_cur, n_cand, d_frames, d_rows).ok());
+  ASSERT_TRUE(ocl::kMatchColumns(*ctx, cols.size(), d_dist, n_cur, n_cand, d_cols).ok());
   const auto g_dist = test::FromDevice(ctx, d_dist, dist.size());
   const auto g_rows = test::FromDevice(ctx, d_rows, rows.size());
   const auto g_cols = test::FromDevice(ctx, d_cols, cols.size());
@@ -214,8 +215,8 @@ TEST(FeatureLiftParityTest, NewtonInvertsTheFieldAndMatchesCpu) {
   auto d_tris = test::ToDevice(ctx, tris);
   auto d_field = test::ToDevice(ctx, field);
   auto d_out = test::ToDevice(ctx, std::vector<vd_float4>(n));
-  ASSERT_TRUE(ctx->Run("vd_feature_lift_kernel", size_t(n), d_points, d_pixel, d_ids, d_bary, d_rv, d_canon, d_tris,
-                       d_field, vol, lp, d_out)
+  ASSERT_TRUE(ocl::kFeatureLift(*ctx, size_t(n), d_points, d_pixel, d_ids, d_bary, d_rv, d_canon, d_tris, d_field, vol,
+                                lp, d_out)
                   .ok());
   const auto got = test::FromDevice(ctx, d_out, n);
   int lifted = 0;
@@ -268,7 +269,7 @@ TEST(FeaturePredictParityTest, MatchesCpuAndSkipsInvalid) {
   auto d_g = test::ToDevice(ctx, g);
   auto d_field = test::ToDevice(ctx, field);
   auto d_out = test::ToDevice(ctx, std::vector<vd_float4>(g.size()));
-  ASSERT_TRUE(ctx->Run("vd_feature_predict_kernel", g.size(), d_g, d_field, vol, d_out).ok());
+  ASSERT_TRUE(ocl::kFeaturePredict(*ctx, g.size(), d_g, d_field, vol, d_out).ok());
   const auto got = test::FromDevice(ctx, d_out, g.size());
   for (size_t i = 0; i < g.size(); ++i) {
     EXPECT_EQ(got[i].w, ref[i].w) << i;

@@ -9,6 +9,7 @@
 
 #include "core/hierarchy.h"
 #include "cpu_ref/cpu_ref.h"
+#include "ocl/hierarchy_ocl.h"
 #include "sphere_volume.h"
 #include "test_scenes.h"
 
@@ -98,7 +99,7 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
 
     auto d_x0 = ctx->Alloc<vd_float4>(got.count);
     ASSERT_TRUE(d_x0.ok());
-    ASSERT_TRUE(ctx->Run("vd_level_restrict_kernel", got.count, got.list, cv, s, fine.compact, f.vol, d_x_f, *d_x0).ok());
+    ASSERT_TRUE(ocl::kLevelRestrict(*ctx, got.count, got.list, cv, s, fine.compact, f.vol, d_x_f, *d_x0).ok());
     std::vector<vd_float4> x0_ref(got.count);
     cpu::LevelRestrict(ref, cv, s, f.fine.compact.data(), f.vol, x_f.data(), x0_ref.data());
     const auto x0 = FromDevice(ctx, *d_x0, got.count);
@@ -106,8 +107,8 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
 
     auto d_cc = ctx->Alloc<VdCorrespondence>(nc);
     ASSERT_TRUE(d_cc.ok());
-    ASSERT_TRUE(ctx->Run("vd_level_constraints", nc, d_cons, fine.compact, f.vol, d_x_f, s, got.compact, cv, *d_x0,
-                         *d_cc).ok());
+    ASSERT_TRUE(
+        ocl::kLevelConstraints(*ctx, nc, d_cons, fine.compact, f.vol, d_x_f, s, got.compact, cv, *d_x0, *d_cc).ok());
     std::vector<VdCorrespondence> cc_ref(nc);
     cpu::LevelConstraints(cons.data(), nc, f.fine.compact.data(), f.vol, x_f.data(), s, ref.compact.data(), cv,
                           x0_ref.data(), cc_ref.data());
@@ -129,8 +130,8 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
     for (size_t k = 0; k < got.count; ++k) x_c[k] = x0_ref[k] + VD_F4(0.001f * float(k % 11), -0.0005f * float(k % 5), 0.002f, 0.f);
     auto d_x_c = ToDevice(ctx, x_c);
     auto d_out = ToDevice(ctx, x_f);
-    ASSERT_TRUE(ctx->Run("vd_level_prolongate_kernel", fine.count, fine.list, f.vol, s, got.compact, cv, d_x_c, *d_x0,
-                         d_out).ok());
+    ASSERT_TRUE(
+        ocl::kLevelProlongate(*ctx, fine.count, fine.list, f.vol, s, got.compact, cv, d_x_c, *d_x0, d_out).ok());
     std::vector<vd_float4> out_ref = x_f;
     cpu::LevelProlongate(f.fine.list, f.vol, s, ref.compact.data(), cv, x_c.data(), x0_ref.data(), out_ref.data());
     EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_out, fine.count)), Flatten(out_ref), 1e-6f, 1e-6f));

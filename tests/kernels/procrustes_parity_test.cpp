@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include "cpu_ref/procrustes_ref.h"
+#include "ocl/procrustes_ocl.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -65,7 +66,7 @@ TEST(ProcrustesParityTest, KernelMatchesCpuReferenceUpToQuaternionSign) {
   auto dth = test::ToDevice(ctx, s.t_hat);
   auto drot = ctx->Alloc<vd_float4>(n);
   ASSERT_TRUE(drot.ok()) << drot.status().ToString();
-  Status run = ctx->Run("vd_procrustes", n, dn, dt, dth, *drot);
+  Status run = ocl::kProcrustes(*ctx, n, dn, dt, dth, *drot);
   ASSERT_TRUE(run.ok()) << run.ToString();
   const std::vector<vd_float4> ocl_rot = test::FromDevice(ctx, *drot, n);
 
@@ -121,7 +122,7 @@ TEST(ProcrustesParityTest, RecoversAGlobalRotationOnTheDevice) {
   auto dth = test::ToDevice(ctx, t_hat);
   auto drot = ctx->Alloc<vd_float4>(n);
   ASSERT_TRUE(drot.ok());
-  ASSERT_TRUE(ctx->Run("vd_procrustes", n, dn, dt, dth, *drot).ok());
+  ASSERT_TRUE(ocl::kProcrustes(*ctx, n, dn, dt, dth, *drot).ok());
   const auto rot = test::FromDevice(ctx, *drot, n);
   std::vector<float> expect;
   for (int k = 0; k < n; ++k) expect.insert(expect.end(), {q.x, q.y, q.z, q.w});

@@ -1,11 +1,17 @@
 #include "core/device_ops.h"
 
-#include "shared/tsdf.h"
-
 #include <algorithm>
 
 #include "core/mc_table.h"
-#include "shared/raster.h"
+#include "ocl/active_set_ocl.h"
+#include "ocl/correspondence_ocl.h"
+#include "ocl/deformation_ocl.h"
+#include "ocl/icp_ocl.h"
+#include "ocl/marching_cubes_ocl.h"
+#include "ocl/preprocess_ocl.h"
+#include "ocl/raster_ocl.h"
+#include "ocl/scan_ocl.h"
+#include "ocl/tsdf_ocl.h"
 
 namespace vd {
 namespace {
@@ -25,29 +31,29 @@ Status DeviceOps::Init() {
 
 Status DeviceOps::DepthConvert(const ocl::Buffer<uint16_t>& raw, ocl::Buffer<float>& depth, int n, float inv_scale,
                                float min_depth, float max_depth) {
-  return ctx_->Run("vd_depth_convert", n, raw, depth, inv_scale, min_depth, max_depth);
+  return ocl::kDepthConvert(*ctx_, n, raw, depth, inv_scale, min_depth, max_depth);
 }
 
 Status DeviceOps::Bilateral(const ocl::Buffer<float>& in, ocl::Buffer<float>& out, int width, int height, int radius,
                             float sigma_space_px, float sigma_depth_m) {
   const float is = 0.5f / (sigma_space_px * sigma_space_px);
   const float id = 0.5f / (sigma_depth_m * sigma_depth_m);
-  return ctx_->Run("vd_bilateral", static_cast<size_t>(width) * height, in, out, width, height, radius, is, id);
+  return ocl::kBilateral(*ctx_, static_cast<size_t>(width) * height, in, out, width, height, radius, is, id);
 }
 
 Status DeviceOps::PyrDown(const ocl::Buffer<float>& in, ocl::Buffer<float>& out, int width, int height,
                           float max_diff) {
   const int ow = width / 2;
-  return ctx_->Run("vd_pyr_down", static_cast<size_t>(ow) * (height / 2), in, out, width, ow, max_diff);
+  return ocl::kPyrDown(*ctx_, static_cast<size_t>(ow) * (height / 2), in, out, width, ow, max_diff);
 }
 
 Status DeviceOps::VertexMap(const ocl::Buffer<float>& depth, ocl::Buffer<vd_float4>& vmap, VdCamera cam) {
-  return ctx_->Run("vd_vertex_map", static_cast<size_t>(cam.width) * cam.height, depth, vmap, cam);
+  return ocl::kVertexMap(*ctx_, static_cast<size_t>(cam.width) * cam.height, depth, vmap, cam);
 }
 
 Status DeviceOps::NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_float4>& nmap, int width, int height,
                             float max_jump) {
-  return ctx_->Run("vd_normal_map", static_cast<size_t>(width) * height, vmap, nmap, width, height, max_jump);
+  return ocl::kNormalMap(*ctx_, static_cast<size_t>(width) * height, vmap, nmap, width, height, max_jump);
 }
 
 Status DeviceOps::AllocVolume(const VdVolume& vol, bool with_deformation, DeviceVolume* out) {
@@ -72,7 +78,7 @@ Status DeviceOps::ResetVolume(DeviceVolume& v) {
   VD_RETURN_IF_ERROR(ctx_->Fill(v.weight, 0.0f, n));
   VD_RETURN_IF_ERROR(ctx_->Fill(v.color, 0u, n));
   if (!v.has_deformation()) return Status::Ok();
-  return ctx_->Run("vd_deformation_reset", v.num_rows(), v.def_pos, v.def_rot, v.vol);
+  return ocl::kDeformationReset(*ctx_, v.num_rows(), v.def_pos, v.def_rot, v.vol);
 }
 
 Status DeviceOps::IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
@@ -84,21 +90,20 @@ Status DeviceOps::IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_c
   VD_RETURN_IF_ERROR(ctx_->Reserve(&brick_list_, bricks));
   const size_t tiles = size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam);
   VD_RETURN_IF_ERROR(ctx_->Reserve(&depth_tiles_, tiles));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_depth_tiles", tiles, depth, cam, depth_tiles_));
+  VD_RETURN_IF_ERROR(ocl::kDepthTiles(*ctx_, tiles, depth, cam, depth_tiles_));
   VD_RETURN_IF_ERROR(
-      ctx_->Run("vd_brick_mark", bricks, depth_tiles_, cam, world_to_cam, v.vol, brick_flags_, brick_masks_));
+      ocl::kBrickMark(*ctx_, bricks, depth_tiles_, cam, world_to_cam, v.vol, brick_flags_, brick_masks_));
   uint32_t total = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(brick_flags_, bricks, brick_offsets_, &total));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_brick_compact", bricks, brick_flags_, brick_offsets_, brick_list_));
+  VD_RETURN_IF_ERROR(ocl::kBrickCompact(*ctx_, bricks, brick_flags_, brick_offsets_, brick_list_));
   brick_count_ = total;
-  return ctx_->Run("vd_tsdf_integrate_bricks", size_t(total) * VD_BRICK_ITEMS, brick_list_, brick_masks_, v.tsdf,
-                   v.weight, v.color, v.vol, cam, world_to_cam, depth, rgba);
+  return ocl::kTsdfIntegrateBricks(*ctx_, size_t(total) * VD_BRICK_ITEMS, brick_list_, brick_masks_, v.tsdf, v.weight,
+                                   v.color, v.vol, cam, world_to_cam, depth, rgba);
 }
 
 Status DeviceOps::IntegrateTsdfDense(DeviceVolume& v, VdCamera cam, VdPose world_to_cam,
                                      const ocl::Buffer<float>& depth, const ocl::Buffer<uint32_t>& rgba) {
-  return ctx_->Run("vd_tsdf_integrate", v.num_rows(), v.tsdf, v.weight, v.color, v.vol, cam, world_to_cam, depth,
-                   rgba);
+  return ocl::kTsdfIntegrate(*ctx_, v.num_rows(), v.tsdf, v.weight, v.color, v.vol, cam, world_to_cam, depth, rgba);
 }
 
 Status DeviceOps::ScanExclusive(const ocl::Buffer<uint32_t>& in, size_t n, ocl::Buffer<uint32_t>& out,
@@ -119,8 +124,8 @@ Status DeviceOps::ScanExclusive(const ocl::Buffer<uint32_t>& in, size_t n, ocl::
   // Down: chunk sums of every level.
   for (size_t l = 0; l < levels; ++l) {
     const ocl::Buffer<uint32_t>& src = l == 0 ? in : scan_sums_[l - 1];
-    VD_RETURN_IF_ERROR(ctx_->Run("vd_scan_sums", sizes[l + 1], src, static_cast<uint32_t>(sizes[l]), kScanChunk,
-                                 scan_sums_[l]));
+    VD_RETURN_IF_ERROR(
+        ocl::kScanSums(*ctx_, sizes[l + 1], src, static_cast<uint32_t>(sizes[l]), kScanChunk, scan_sums_[l]));
   }
   // Up: the top level fits in one chunk; each level below adds its chunk offsets.
   for (size_t l = levels + 1; l-- > 0;) {
@@ -129,8 +134,8 @@ Status DeviceOps::ScanExclusive(const ocl::Buffer<uint32_t>& in, size_t n, ocl::
     const bool top = l == levels;
     const ocl::Buffer<uint32_t>& offsets = top ? dst : scan_offsets_[l];
     const size_t items = top ? 1 : sizes[l + 1];
-    VD_RETURN_IF_ERROR(ctx_->Run("vd_scan_apply", items, src, static_cast<uint32_t>(sizes[l]), kScanChunk, offsets,
-                                 static_cast<uint32_t>(top ? 0 : 1), dst));
+    VD_RETURN_IF_ERROR(ocl::kScanApply(*ctx_, items, src, static_cast<uint32_t>(sizes[l]), kScanChunk, offsets,
+                                       static_cast<uint32_t>(top ? 0 : 1), dst));
   }
   if (total) VD_RETURN_IF_ERROR(ctx_->Download(out, total, 1, n));
   return Status::Ok();
@@ -145,8 +150,8 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_verts_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_tri_offset_, rows + 1));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_vert_offset_, rows + 1));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_classify", rows, v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_row_tris_));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_masks", rows, v.tsdf, mc_codes_, mc_row_tris_, v.vol, mc_masks_, mc_row_verts_));
+  VD_RETURN_IF_ERROR(ocl::kMcClassify(*ctx_, rows, v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_row_tris_));
+  VD_RETURN_IF_ERROR(ocl::kMcMasks(*ctx_, rows, v.tsdf, mc_codes_, mc_row_tris_, v.vol, mc_masks_, mc_row_verts_));
   uint32_t nt = 0, nv = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(mc_row_tris_, rows, mc_row_tri_offset_, &nt));
   VD_RETURN_IF_ERROR(ScanExclusive(mc_row_verts_, rows, mc_row_vert_offset_, &nv));
@@ -158,14 +163,15 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->colors, nv));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->triangles, 3 * static_cast<size_t>(nt)));
   if (nv == 0 || nt == 0) return Status::Ok();
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_mc_vertices", rows, v.tsdf, v.color, v.vol, mc_masks_, mc_row_verts_,
-                               mc_row_vert_offset_, mc_vert_offset_, mesh->positions_grid, mesh->normals, mesh->colors));
-  return ctx_->Run("vd_mc_triangles", rows, mc_codes_, mc_row_tris_, mc_row_tri_offset_, mc_tri_table_, mc_masks_,
-                   mc_vert_offset_, v.vol, mesh->triangles);
+  VD_RETURN_IF_ERROR(ocl::kMcVertices(*ctx_, rows, v.tsdf, v.color, v.vol, mc_masks_, mc_row_verts_,
+                                      mc_row_vert_offset_, mc_vert_offset_, mesh->positions_grid, mesh->normals,
+                                      mesh->colors));
+  return ocl::kMcTriangles(*ctx_, rows, mc_codes_, mc_row_tris_, mc_row_tri_offset_, mc_tri_table_, mc_masks_,
+                           mc_vert_offset_, v.vol, mesh->triangles);
 }
 
 Status DeviceOps::GridToWorld(const VdVolume& vol, DeviceMesh* mesh) {
-  return ctx_->Run("vd_grid_to_world", mesh->num_vertices, mesh->positions_grid, vol, mesh->positions);
+  return ocl::kGridToWorld(*ctx_, mesh->num_vertices, mesh->positions_grid, vol, mesh->positions);
 }
 
 Status DeviceOps::Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
@@ -173,26 +179,26 @@ Status DeviceOps::Correspondences(const DeviceRaster& model, const ocl::Buffer<v
                                   const VdCorrParams& params, ocl::Buffer<VdCorrespondence>& out) {
   const size_t n = static_cast<size_t>(model.cam.width) * model.cam.height;
   if (out.size() < n) return OutOfRange("correspondence buffer smaller than the image");
-  return ctx_->Run("vd_correspondences", n, model.vertex, model.normal, model.ids, model.bary, obs_v, obs_n,
-                   mesh.positions_grid, mesh.triangles, params, out);
+  return ocl::kCorrespondences(*ctx_, n, model.vertex, model.normal, model.ids, model.bary, obs_v, obs_n,
+                               mesh.positions_grid, mesh.triangles, params, out);
 }
 
 Status DeviceOps::Extrapolate(DeviceVolume& v, const DeviceActiveSet& active) {
   if (!v.has_deformation()) return FailedPrecondition("Extrapolate needs a deformation field");
   VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_pos_, std::max<size_t>(active.count, 1)));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_rot_, std::max<size_t>(active.count, 1)));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_extrapolate", active.count, active.list, v.def_pos, v.def_rot, v.vol,
-                               extrapolated_pos_, extrapolated_rot_));
-  return ctx_->Run("vd_extrapolate_commit", active.count, active.list, extrapolated_pos_, extrapolated_rot_, v.def_pos,
-                   v.def_rot);
+  VD_RETURN_IF_ERROR(ocl::kExtrapolate(*ctx_, active.count, active.list, v.def_pos, v.def_rot, v.vol, extrapolated_pos_,
+                                       extrapolated_rot_));
+  return ocl::kExtrapolateCommit(*ctx_, active.count, active.list, extrapolated_pos_, extrapolated_rot_, v.def_pos,
+                                 v.def_rot);
 }
 
 Status DeviceOps::IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, float k_min, VdCamera cam,
                                   VdPose world_to_cam, const ocl::Buffer<float>& depth,
                                   const ocl::Buffer<uint32_t>& rgba) {
   if (!v.has_deformation()) return FailedPrecondition("IntegrateActive needs a deformation field");
-  return ctx_->Run("vd_tsdf_integrate_active", active.count, v.tsdf, v.weight, v.color, active.list, v.def_pos, k_min,
-                   v.vol, cam, world_to_cam, depth, rgba);
+  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, active.list, v.def_pos, k_min, v.vol,
+                                   cam, world_to_cam, depth, rgba);
 }
 
 Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
@@ -204,23 +210,23 @@ Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_offset_, rows + 1));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_surface_, rows));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_surface", rows, mc_codes_, mc_tri_counts_, mc_row_tris_, v.vol,
-                               active_surface_, active_row_surface_));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_dilate", rows, active_surface_, active_row_surface_, v.vol, active_member_,
-                               active_row_count_));
+  VD_RETURN_IF_ERROR(ocl::kActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, v.vol, active_surface_,
+                                         active_row_surface_));
+  VD_RETURN_IF_ERROR(
+      ocl::kActiveDilate(*ctx_, rows, active_surface_, active_row_surface_, v.vol, active_member_, active_row_count_));
   uint32_t total = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
   out->count = total;
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1)));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_active_compact", rows, active_member_, active_row_offset_, v.vol, out->list,
-                               out->compact));
-  return ctx_->Run("vd_active_neighbours", total, out->list, out->compact, v.vol, out->neighbours);
+  VD_RETURN_IF_ERROR(
+      ocl::kActiveCompact(*ctx_, rows, active_member_, active_row_offset_, v.vol, out->list, out->compact));
+  return ocl::kActiveNeighbours(*ctx_, total, out->list, out->compact, v.vol, out->neighbours);
 }
 
 Status DeviceOps::DeformVertices(const DeviceVolume& v, DeviceMesh* mesh) {
   if (!v.has_deformation()) return FailedPrecondition("DeformVertices: the grid has no deformation field");
-  return ctx_->Run("vd_deform_vertices", mesh->num_vertices, mesh->positions_grid, v.def_pos, v.vol, mesh->positions);
+  return ocl::kDeformVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, v.def_pos, v.vol, mesh->positions);
 }
 
 Status DeviceOps::Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out) {
@@ -233,12 +239,12 @@ Status DeviceOps::Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamer
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->bary, n));
   VD_RETURN_IF_ERROR(ctx_->Fill(out->depth_bits, VD_RASTER_EMPTY, n));
   VD_RETURN_IF_ERROR(ctx_->Fill(out->ids, VD_RASTER_EMPTY, n));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_raster_depth_pass", mesh.num_triangles, mesh.positions, mesh.triangles, world_to_cam,
-                               cam, out->depth_bits));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_raster_id_pass", mesh.num_triangles, mesh.positions, mesh.triangles, world_to_cam, cam,
-                               out->depth_bits, out->ids));
-  return ctx_->Run("vd_raster_resolve", n, mesh.positions, mesh.normals, mesh.triangles, world_to_cam, cam, out->ids,
-                   out->vertex, out->normal, out->bary);
+  VD_RETURN_IF_ERROR(ocl::kRasterDepthPass(*ctx_, mesh.num_triangles, mesh.positions, mesh.triangles, world_to_cam, cam,
+                                           out->depth_bits));
+  VD_RETURN_IF_ERROR(ocl::kRasterIdPass(*ctx_, mesh.num_triangles, mesh.positions, mesh.triangles, world_to_cam, cam,
+                                        out->depth_bits, out->ids));
+  return ocl::kRasterResolve(*ctx_, n, mesh.positions, mesh.normals, mesh.triangles, world_to_cam, cam, out->ids,
+                             out->vertex, out->normal, out->bary);
 }
 
 Status DeviceOps::IcpReduce(const ocl::Buffer<vd_float4>& vmap, const ocl::Buffer<vd_float4>& nmap,
@@ -246,8 +252,7 @@ Status DeviceOps::IcpReduce(const ocl::Buffer<vd_float4>& vmap, const ocl::Buffe
                             const VdIcpParams& params, double acc[VD_ICP_ACC]) {
   const size_t groups = (static_cast<size_t>(n) + kIcpChunk - 1) / kIcpChunk;
   VD_RETURN_IF_ERROR(ctx_->Reserve(&icp_partials_, groups * VD_ICP_ACC));
-  VD_RETURN_IF_ERROR(ctx_->Run("vd_icp_reduce", groups, vmap, nmap, model_v, model_n, n, kIcpChunk, params,
-                               icp_partials_));
+  VD_RETURN_IF_ERROR(ocl::kIcpReduce(*ctx_, groups, vmap, nmap, model_v, model_n, n, kIcpChunk, params, icp_partials_));
   icp_host_.resize(groups * VD_ICP_ACC);
   VD_RETURN_IF_ERROR(ctx_->Download(icp_partials_, icp_host_.data(), icp_host_.size()));
   for (int k = 0; k < VD_ICP_ACC; ++k) acc[k] = 0.0;

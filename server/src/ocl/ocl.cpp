@@ -268,7 +268,7 @@ Context::~Context() {
     std::fprintf(stderr, "kernel profile (ms total, launches):\n");
     for (const auto& [ms, name] : rows) std::fprintf(stderr, "  %-32s %10.1f %8lld\n", name.c_str(), ms, profile_[name].second);
   }
-  for (auto& [name, k] : kernels_) clReleaseKernel(k);
+  for (auto& [name, k] : kernels_) clReleaseKernel(k.first);
   if (program_) clReleaseProgram(program_);
   if (queue_) clReleaseCommandQueue(queue_);
   if (context_) clReleaseContext(context_);
@@ -286,7 +286,9 @@ Status Context::Build() {
   cl_int err = CL_SUCCESS;
   program_ = clCreateProgramWithSource(context_, 1, &text, &len, &err);
   if (err != CL_SUCCESS) return ClError(err, "clCreateProgramWithSource", __FILE__, __LINE__);
-  std::string options = "-cl-std=CL1.2";
+  // Argument info lets FindKernel check each handle's read/write/value kinds, not only its count
+  // (PoCL reports none without it); it is metadata and leaves the generated code alone.
+  std::string options = "-cl-std=CL1.2 -cl-kernel-arg-info";
   cl_device_fp_config fp = 0;
   clGetDeviceInfo(device_.id, CL_DEVICE_SINGLE_FP_CONFIG, sizeof(fp), &fp, nullptr);
   // Same division and square root as the host reference where the device can.
@@ -303,15 +305,55 @@ Status Context::Build() {
   return Status::Ok();
 }
 
-StatusOr<cl_kernel> Context::Kernel(const char* name) {
+namespace {
+
+// The program's view of kernel k as FindKernel's letters.
+StatusOr<std::string> ProgramSignature(cl_kernel k, const char* name) {
+  cl_uint n = 0;
+  cl_int err = clGetKernelInfo(k, CL_KERNEL_NUM_ARGS, sizeof(n), &n, nullptr);
+  if (err != CL_SUCCESS) return ClError(err, (std::string("clGetKernelInfo ") + name).c_str(), __FILE__, __LINE__);
+  std::string sig(n, '?');
+  for (cl_uint i = 0; i < n; ++i) {
+    cl_kernel_arg_address_qualifier address = 0;
+    cl_kernel_arg_type_qualifier type = 0;
+    if (clGetKernelArgInfo(k, i, CL_KERNEL_ARG_ADDRESS_QUALIFIER, sizeof(address), &address, nullptr) != CL_SUCCESS ||
+        clGetKernelArgInfo(k, i, CL_KERNEL_ARG_TYPE_QUALIFIER, sizeof(type), &type, nullptr) != CL_SUCCESS)
+      continue;
+    if (address == CL_KERNEL_ARG_ADDRESS_PRIVATE) sig[i] = 's';
+    if (address == CL_KERNEL_ARG_ADDRESS_GLOBAL) sig[i] = (type & CL_KERNEL_ARG_TYPE_CONST) ? 'r' : 'w';
+  }
+  return sig;
+}
+
+bool SignaturesAgree(const std::string& program, const char* handle) {
+  if (program.size() != std::strlen(handle)) return false;
+  for (size_t i = 0; i < program.size(); ++i)
+    if (program[i] != '?' && program[i] != handle[i]) return false;
+  return true;
+}
+
+}  // namespace
+
+StatusOr<cl_kernel> Context::FindKernel(const char* name, const char* signature) {
   std::lock_guard<std::mutex> lock(kernels_mutex_);
   auto it = kernels_.find(name);
-  if (it != kernels_.end()) return it->second;
-  cl_int err = CL_SUCCESS;
-  cl_kernel k = clCreateKernel(program_, name, &err);
-  if (err != CL_SUCCESS) return ClError(err, (std::string("clCreateKernel ") + name).c_str(), __FILE__, __LINE__);
-  kernels_[name] = k;
-  return k;
+  if (it == kernels_.end()) {
+    cl_int err = CL_SUCCESS;
+    cl_kernel k = clCreateKernel(program_, name, &err);
+    if (err != CL_SUCCESS) return ClError(err, (std::string("clCreateKernel ") + name).c_str(), __FILE__, __LINE__);
+    StatusOr<std::string> sig = ProgramSignature(k, name);
+    if (!sig.ok()) {
+      clReleaseKernel(k);
+      return sig.status();
+    }
+    it = kernels_.emplace(name, std::make_pair(k, std::move(sig).value())).first;
+  }
+  // Checked on every launch: two handles may name one kernel (a test declares a wrong one).
+  if (!SignaturesAgree(it->second.second, signature)) {
+    return Internal(std::string(name) + " has arguments '" + it->second.second + "' in the program but its handle '" +
+                    signature + "' (w: __global T*, r: __global const T*, s: value; vd_items last)");
+  }
+  return it->second.first;
 }
 
 Status Context::Enqueue(cl_kernel k, const char* name, size_t items) {

@@ -1,6 +1,7 @@
 #pragma once
 // OpenCL runtime: device selection, the embedded program built once, RAII buffers and checked
-// kernel launches. Every OpenCL call is checked and reported with its error name and call site.
+// kernel launches (through the typed handles of ocl/kernel.h). Every OpenCL call is checked and
+// reported with its error name and call site.
 #ifndef CL_TARGET_OPENCL_VERSION
 #define CL_TARGET_OPENCL_VERSION 120
 #endif
@@ -50,6 +51,8 @@ StatusOr<std::vector<DeviceInfo>> ListDevices();
 std::string DescribeDevices(const std::vector<DeviceInfo>& devices);
 
 class Context;
+template <class Signature>
+class Kernel;
 
 // A device buffer of n elements of T; movable, released on destruction.
 template <typename T>
@@ -158,22 +161,6 @@ class Context {
     return Status::Ok();
   }
 
-  // Runs kernel `name` over `items` work items (no-op when 0). Every kernel takes the item count
-  // as its last argument (`int vd_items`, appended here) and returns early past it: the range is
-  // padded to whole work-groups of a fixed size, so a device compiles one work-group variant per
-  // kernel instead of one per distinct size (PoCL: ~0.1 s each, per frame for mesh-sized ranges).
-  template <typename... Args>
-  Status Run(const char* name, size_t items, const Args&... args) {
-    if (items == 0) return Status::Ok();
-    if (items > static_cast<size_t>(INT32_MAX)) return OutOfRange(std::string(name) + ": too many work items");
-    VD_ASSIGN_OR_RETURN(cl_kernel k, Kernel(name));
-    cl_uint index = 0;
-    Status s = Status::Ok();
-    (SetArg(k, index++, args, name, &s), ...);
-    SetArg(k, index, static_cast<int32_t>(items), name, &s);
-    VD_RETURN_IF_ERROR(s);
-    return Enqueue(k, name, items);
-  }
   // Work-group size of every launch.
   static constexpr size_t kGroupSize = 64;
   // Blocks until every queued command finished (for timing and before host reads).
@@ -184,9 +171,32 @@ class Context {
   size_t peak_bytes() const { return peak_bytes_; }
 
  private:
+  template <class Signature>
+  friend class Kernel;
   Context() = default;
   Status Build();
-  StatusOr<cl_kernel> Kernel(const char* name);
+  // Runs kernel `name` over `items` work items (no-op when 0). Every kernel takes the item count
+  // as its last argument (`int vd_items`, appended here) and returns early past it: the range is
+  // padded to whole work-groups of a fixed size, so a device compiles one work-group variant per
+  // kernel instead of one per distinct size (PoCL: ~0.1 s each, per frame for mesh-sized ranges).
+  // Reached only through a typed Kernel handle (ocl/kernel.h), which checked the arguments and
+  // passes its signature (one letter per argument, see FindKernel).
+  template <typename... Args>
+  Status Run(const char* name, const char* signature, size_t items, const Args&... args) {
+    if (items == 0) return Status::Ok();
+    if (items > static_cast<size_t>(INT32_MAX)) return OutOfRange(std::string(name) + ": too many work items");
+    VD_ASSIGN_OR_RETURN(cl_kernel k, FindKernel(name, signature));
+    cl_uint index = 0;
+    Status s = Status::Ok();
+    (SetArg(k, index++, args, name, &s), ...);
+    SetArg(k, index, static_cast<int32_t>(items), name, &s);
+    VD_RETURN_IF_ERROR(s);
+    return Enqueue(k, name, items);
+  }
+  // The kernel `name` of the program, created once. Fails when the program's kernel disagrees with
+  // `signature`, a letter per argument: 'w' a __global T*, 'r' a __global const T*, 's' a value.
+  // Where the device reports no argument info only the count is compared.
+  StatusOr<cl_kernel> FindKernel(const char* name, const char* signature);
   Status Enqueue(cl_kernel k, const char* name, size_t global);
 
   template <typename T>
@@ -208,7 +218,9 @@ class Context {
   cl_context context_ = nullptr;
   cl_command_queue queue_ = nullptr;
   cl_program program_ = nullptr;
-  std::map<std::string, cl_kernel> kernels_;
+  // Per kernel name: the created kernel and its signature in the program (FindKernel's letters,
+  // '?' for each argument whose kind the device does not report).
+  std::map<std::string, std::pair<cl_kernel, std::string>> kernels_;
   std::mutex kernels_mutex_;
   size_t allocated_bytes_ = 0;
   size_t peak_bytes_ = 0;

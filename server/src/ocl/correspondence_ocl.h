@@ -1,0 +1,19 @@
+#pragma once
+// The kernels of kernels/correspondence.cl, per-item math in shared/correspondence.h. One typed handle
+// each (ocl/kernel.h), its parameters those of the __kernel in order; kFoo(ctx, items, args...)
+// runs it over `items` work items (what one item is, above each).
+#include <cstdint>
+
+#include "ocl/kernel.h"
+#include "shared/correspondence.h"
+
+namespace vd::ocl {
+
+// One item per pixel.
+inline constexpr Kernel<void(const Buffer<vd_float4>& model_v, const Buffer<vd_float4>& model_n,
+                             const Buffer<uint32_t>& ids, const Buffer<vd_float4>& bary, const Buffer<vd_float4>& obs_v,
+                             const Buffer<vd_float4>& obs_n, const Buffer<vd_float4>& canon,
+                             const Buffer<int32_t>& tris, VdCorrParams prm,
+                             Buffer<VdCorrespondence>& out)> kCorrespondences{"vd_correspondences"};
+
+}  // namespace vd::ocl

@@ -1,0 +1,32 @@
+#pragma once
+// The kernels of kernels/hierarchy.cl, per-item math in shared/hierarchy.h. One typed handle
+// each (ocl/kernel.h), its parameters those of the __kernel in order; kFoo(ctx, items, args...)
+// runs it over `items` work items (what one item is, above each).
+#include <cstdint>
+
+#include "ocl/kernel.h"
+#include "shared/hierarchy.h"
+
+namespace vd::ocl {
+
+// One item per fine active point.
+inline constexpr Kernel<void(const Buffer<int32_t>& list_f, VdVolume fine, int s, VdVolume coarse,
+                             Buffer<uint8_t>& member)> kLevelMark{"vd_level_mark"};
+// One item per coarse grid row.
+inline constexpr Kernel<void(const Buffer<uint8_t>& member, VdVolume coarse,
+                             Buffer<uint32_t>& row_count)> kLevelRowCount{"vd_level_row_count"};
+// One item per coarse active point.
+inline constexpr Kernel<void(const Buffer<int32_t>& list_c, VdVolume coarse, int s, const Buffer<int32_t>& compact_f,
+                             VdVolume fine, const Buffer<vd_float4>& x_f,
+                             Buffer<vd_float4>& x0_c)> kLevelRestrict{"vd_level_restrict_kernel"};
+// One item per fine constraint.
+inline constexpr Kernel<void(const Buffer<VdCorrespondence>& cons_f, const Buffer<int32_t>& compact_f, VdVolume fine,
+                             const Buffer<vd_float4>& x_f, int s, const Buffer<int32_t>& compact_c, VdVolume coarse,
+                             const Buffer<vd_float4>& x0_c,
+                             Buffer<VdCorrespondence>& cons_c)> kLevelConstraints{"vd_level_constraints"};
+// One item per fine active point; adds to x_f.
+inline constexpr Kernel<void(const Buffer<int32_t>& list_f, VdVolume fine, int s, const Buffer<int32_t>& compact_c,
+                             VdVolume coarse, const Buffer<vd_float4>& x_c, const Buffer<vd_float4>& x0_c,
+                             Buffer<vd_float4>& x_f)> kLevelProlongate{"vd_level_prolongate_kernel"};
+
+}  // namespace vd::ocl

@@ -1,0 +1,28 @@
+#pragma once
+// The kernels of kernels/preprocess.cl, per-item math in shared/preprocess.h. One typed handle
+// each (ocl/kernel.h), its parameters those of the __kernel in order; kFoo(ctx, items, args...)
+// runs it over `items` work items (what one item is, above each).
+#include <cstdint>
+
+#include "ocl/kernel.h"
+#include "shared/preprocess.h"
+
+namespace vd::ocl {
+
+// One item per pixel.
+inline constexpr Kernel<void(const Buffer<uint16_t>& raw, Buffer<float>& depth, float inv_scale, float min_depth,
+                             float max_depth)> kDepthConvert{"vd_depth_convert"};
+// One item per pixel.
+inline constexpr Kernel<void(const Buffer<float>& in, Buffer<float>& out, int width, int height, int radius,
+                             float inv_2sigma_space2, float inv_2sigma_depth2)> kBilateral{"vd_bilateral"};
+// One item per output pixel.
+inline constexpr Kernel<void(const Buffer<float>& in, Buffer<float>& out, int in_width, int out_width,
+                             float max_diff)> kPyrDown{"vd_pyr_down"};
+// One item per pixel.
+inline constexpr Kernel<void(const Buffer<float>& depth, Buffer<vd_float4>& vmap,
+                             VdCamera cam)> kVertexMap{"vd_vertex_map"};
+// One item per pixel.
+inline constexpr Kernel<void(const Buffer<vd_float4>& vmap, Buffer<vd_float4>& nmap, int width, int height,
+                             float max_jump)> kNormalMap{"vd_normal_map"};
+
+}  // namespace vd::ocl

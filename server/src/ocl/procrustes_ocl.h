@@ -1,0 +1,16 @@
+#pragma once
+// The kernels of kernels/procrustes.cl, per-item math in shared/procrustes.h. One typed handle
+// each (ocl/kernel.h), its parameters those of the __kernel in order; kFoo(ctx, items, args...)
+// runs it over `items` work items (what one item is, above each).
+#include <cstdint>
+
+#include "ocl/kernel.h"
+#include "shared/procrustes.h"
+
+namespace vd::ocl {
+
+// One item per active point: R_k as a unit quaternion.
+inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t,
+                             const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot)> kProcrustes{"vd_procrustes"};
+
+}  // namespace vd::ocl
