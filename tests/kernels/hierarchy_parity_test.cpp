@@ -57,8 +57,10 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
   fine.list = ToDevice(ctx, f.fine.list);
   fine.compact = ToDevice(ctx, f.fine.compact);
   fine.neighbours = ToDevice(ctx, f.fine.neighbours);
-  HierarchicalSolver h(&ops);
-  ASSERT_TRUE(h.Prepare(dv, fine, 3).ok());
+  SolverParams three_levels;
+  three_levels.levels = 3;
+  HierarchicalSolver h(&ops, three_levels);
+  ASSERT_TRUE(h.Prepare(dv, fine).ok());
   ASSERT_EQ(h.num_levels(), 3);
 
   // Fine state: rest plus a smooth non-rigid displacement.

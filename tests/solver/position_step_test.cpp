@@ -110,9 +110,8 @@ TEST_P(PcgTest, MatchesAnIndependentSparseDirectSolve) {
   SolverParams sp;
   sp.pcg_iterations = 400;
   sp.pcg_tolerance = 1e-6f;
-  DeviceSolver solver(ops_.get());
-  solver.set_cache_btb(GetParam());
-  ASSERT_TRUE(solver.Setup(volume_, active_, pixels_, prob_.cons.size(), sp).ok());
+  DeviceSolver solver(ops_.get(), sp, GetParam());
+  ASSERT_TRUE(solver.Setup(volume_, active_, pixels_, prob_.cons.size()).ok());
   EXPECT_EQ(solver.num_constraints(), prob_.cons.size());
   auto its = solver.PositionStep();
   ASSERT_TRUE(its.ok()) << its.status().ToString();
@@ -186,8 +185,8 @@ INSTANTIATE_TEST_SUITE_P(BtbOnTheFlyAndCached, PcgTest, ::testing::Bool());
 TEST_F(PositionStepTest, FlipFlopStepsNeverIncreaseTheEnergy) {
   SolverParams sp;
   sp.pcg_iterations = 60;
-  DeviceSolver solver(ops_.get());
-  ASSERT_TRUE(solver.Setup(volume_, active_, pixels_, prob_.cons.size(), sp).ok());
+  DeviceSolver solver(ops_.get(), sp, false);
+  ASSERT_TRUE(solver.Setup(volume_, active_, pixels_, prob_.cons.size()).ok());
   auto e0 = solver.Energy();
   ASSERT_TRUE(e0.ok());
   double prev = *e0;
@@ -226,18 +225,18 @@ TEST_F(PositionStepTest, HierarchyReachesTheEnergyInFewerFineIterations) {
     sp.pcg_iterations = 5;
     sp.levels = levels;
     sp.flip_flop_iterations = fine_iterations;
-    HierarchicalSolver solver(ops_.get());
-    EXPECT_TRUE(solver.Prepare(volume_, active_, levels).ok());
-    auto s = solver.Solve(volume_, pixels_, prob_.cons.size(), sp);
+    HierarchicalSolver solver(ops_.get(), sp);
+    EXPECT_TRUE(solver.Prepare(volume_, active_).ok());
+    auto s = solver.Solve(volume_, pixels_, prob_.cons.size());
     EXPECT_TRUE(s.ok()) << s.status().ToString();
     return s.ok() ? s->energy_final : 1e30;
   };
   const double e_init = [&] {
-    HierarchicalSolver solver(ops_.get());
-    EXPECT_TRUE(solver.Prepare(volume_, active_, 1).ok());
     SolverParams sp;
     sp.levels = 1;
-    auto s = solver.Solve(volume_, pixels_, prob_.cons.size(), sp);
+    HierarchicalSolver solver(ops_.get(), sp);
+    EXPECT_TRUE(solver.Prepare(volume_, active_).ok());
+    auto s = solver.Solve(volume_, pixels_, prob_.cons.size());
     return s.ok() ? s->energy_initial : 0.0;
   }();
   const double target = energy_after(1, 8);

@@ -169,7 +169,7 @@ Engine::Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx)
     : params_(params),
       ctx_(std::move(ctx)),
       ops_(ctx_.get()),
-      solver_(std::make_unique<HierarchicalSolver>(&ops_)),
+      solver_(std::make_unique<HierarchicalSolver>(&ops_, params_.solver)),
       matcher_(ctx_.get()) {
   extractor_.Configure(params_.features, params_.min_depth, params_.max_depth);
 }
@@ -494,7 +494,7 @@ Status Engine::NonRigid(FrameResult* result) {
   // M from the surface extracted after the last frame; new members start from the field.
   VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_));
   VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
-  VD_RETURN_IF_ERROR(solver_->Prepare(volume_, active_, params_.solver.levels));
+  VD_RETURN_IF_ERROR(solver_->Prepare(volume_, active_));
   const size_t pixels = static_cast<size_t>(cam_.width) * cam_.height;
   // E_sparse: each match as three axis rows after the per-pixel constraints (weight w_s / w_d).
   sparse_host_.clear();
@@ -514,7 +514,7 @@ Status Engine::NonRigid(FrameResult* result) {
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
     VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
     VD_RETURN_IF_ERROR(ops_.Correspondences(live_, vmap_[0], nmap_[0], mesh_, cp, corr_));
-    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, total, params_.solver));
+    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, total));
     VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
     if (outer == 0) result->energy_initial = summary.energy_initial;
     result->energy_final = summary.energy_final;

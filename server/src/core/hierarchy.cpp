@@ -36,9 +36,10 @@ Status HierarchicalSolver::BuildLevel(const DeviceVolume& v, const DeviceActiveS
   return ocl::kActiveNeighbours(ctx, total, L->active.list, L->active.compact, L->vol, L->active.neighbours);
 }
 
-Status HierarchicalSolver::Prepare(const DeviceVolume& v, const DeviceActiveSet& fine, int levels) {
+Status HierarchicalSolver::Prepare(const DeviceVolume& v, const DeviceActiveSet& fine) {
+  const int levels = params_.levels;
   fine_active_ = &fine;
-  while (int(levels_.size()) < levels - 1) levels_.push_back(std::make_unique<Level>(ops_));
+  while (int(levels_.size()) < levels - 1) levels_.push_back(std::make_unique<Level>(ops_, params_));
   levels_.resize(std::max(0, levels - 1));
   for (size_t i = 0; i < levels_.size(); ++i) {
     levels_[i]->spacing = 2 << i;
@@ -48,12 +49,11 @@ Status HierarchicalSolver::Prepare(const DeviceVolume& v, const DeviceActiveSet&
 }
 
 StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
-                                                  const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n,
-                                                  const SolverParams& params) {
+                                                  const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n) {
+  const SolverParams& params = params_;
   if (!fine_active_) return FailedPrecondition("HierarchicalSolver::Solve before Prepare");
   ocl::Context& ctx = ops_->ctx();
-  fine_.set_cache_btb(params.cache_btb_fine);
-  VD_RETURN_IF_ERROR(fine_.Setup(v, *fine_active_, per_pixel, n, params));
+  VD_RETURN_IF_ERROR(fine_.Setup(v, *fine_active_, per_pixel, n));
   SolverSummary summary;
   VD_ASSIGN_OR_RETURN(summary.energy_initial, fine_.Energy());
 
@@ -71,8 +71,7 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
       VD_RETURN_IF_ERROR(ctx.Reserve(&L.cons, std::max<size_t>(nc, 1)));
       VD_RETURN_IF_ERROR(ocl::kLevelConstraints(ctx, nc, fine_.constraints(), fine_active_->compact, v.vol,
                                                 fine_.positions(), s, L.active.compact, L.vol, L.x0, L.cons));
-      L.solver.set_cache_btb(params.cache_btb_coarse);
-      VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.vol, L.active, L.cons, nc, params));
+      VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.vol, L.active, L.cons, nc));
       VD_RETURN_IF_ERROR(L.solver.InitState(L.x0));
       // Rotations of the restricted state first, then the flip-flop.
       VD_RETURN_IF_ERROR(L.solver.RotationStep());

@@ -12,14 +12,16 @@ namespace vd {
 
 class HierarchicalSolver {
  public:
-  explicit HierarchicalSolver(DeviceOps* ops) : ops_(ops), fine_(ops) {}
+  // params are validated by the caller (EngineParams::Validate at start-up).
+  HierarchicalSolver(DeviceOps* ops, const SolverParams& params)
+      : ops_(ops), params_(params), fine_(ops, params, params.cache_btb_fine) {}
 
-  // Builds levels 1 .. levels-1 from the fine active set (once per frame: M changes per frame only).
-  Status Prepare(const DeviceVolume& v, const DeviceActiveSet& fine, int levels);
+  // Builds levels 1 .. params.levels-1 from the fine active set (once per frame: M changes per
+  // frame only).
+  Status Prepare(const DeviceVolume& v, const DeviceActiveSet& fine);
   // One non-linear solve from the field's current state: coarse levels first, then the fine level.
   // Energies are the fine level's E_total before and after.
-  StatusOr<SolverSummary> Solve(const DeviceVolume& v, const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n,
-                                const SolverParams& params);
+  StatusOr<SolverSummary> Solve(const DeviceVolume& v, const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n);
   Status WriteBack(DeviceVolume& v) { return fine_.WriteBack(v); }
 
   int num_levels() const { return 1 + int(levels_.size()); }
@@ -32,7 +34,7 @@ class HierarchicalSolver {
 
  private:
   struct Level {
-    explicit Level(DeviceOps* ops) : solver(ops) {}
+    Level(DeviceOps* ops, const SolverParams& params) : solver(ops, params, params.cache_btb_coarse) {}
     int spacing = 2;
     VdVolume vol{};
     DeviceActiveSet active;
@@ -46,6 +48,7 @@ class HierarchicalSolver {
   Status BuildLevel(const DeviceVolume& v, const DeviceActiveSet& fine, Level* level);
 
   DeviceOps* ops_;
+  const SolverParams params_;
   DeviceSolver fine_;
   const DeviceActiveSet* fine_active_ = nullptr;
   std::vector<std::unique_ptr<Level>> levels_;

@@ -1,5 +1,6 @@
 #include "core/solver.h"
 
+#include <cassert>
 #include <cmath>
 #include <sstream>
 
@@ -44,6 +45,11 @@ Status SolverParams::Validate() const {
   return Status::Ok();
 }
 
+DeviceSolver::DeviceSolver(DeviceOps* ops, const SolverParams& params, bool cache_btb)
+    : ops_(ops), params_(params), cache_btb_(cache_btb) {
+  assert(params.Validate().ok());
+}
+
 VdSolverWeights DeviceSolver::Weights() const {
   VdSolverWeights w{};
   w.w_dense = params_.w_dense;
@@ -53,10 +59,9 @@ VdSolverWeights DeviceSolver::Weights() const {
 }
 
 Status DeviceSolver::Setup(const DeviceVolume& v, const DeviceActiveSet& active,
-                           const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels,
-                           const SolverParams& params) {
+                           const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
   if (!v.has_deformation()) return FailedPrecondition("the solver needs a grid with a deformation field");
-  VD_RETURN_IF_ERROR(SetupConstraints(v.vol, active, per_pixel, num_pixels, params));
+  VD_RETURN_IF_ERROR(SetupConstraints(v.vol, active, per_pixel, num_pixels));
   return ocl::kSolverGatherState(ops_->ctx(), m_, active.list, v.def_pos, v.def_rot, x_, rot_);
 }
 
@@ -68,11 +73,8 @@ Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0) {
 }
 
 Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
-                                      const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels,
-                                      const SolverParams& params) {
-  VD_RETURN_IF_ERROR(params.Validate());
+                                      const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
   ocl::Context& ctx = ops_->ctx();
-  params_ = params;
   vol_ = vol;
   active_ = &active;
   m_ = active.count;

@@ -48,17 +48,17 @@ struct SolverSummary {
 
 class DeviceSolver {
  public:
-  explicit DeviceSolver(DeviceOps* ops) : ops_(ops) {}
-  // Apply B^T B from cached blocks (built in Setup) rather than from the constraints.
-  void set_cache_btb(bool on) { cache_btb_ = on; }
+  // params are validated by the caller (EngineParams::Validate at start-up); cache_btb: apply
+  // B^T B from cached blocks (built in Setup) rather than from the constraints.
+  DeviceSolver(DeviceOps* ops, const SolverParams& params, bool cache_btb);
 
   // Groups the valid per-pixel constraints by cell and copies the active points' state.
   Status Setup(const DeviceVolume& v, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
-               size_t num_pixels, const SolverParams& params);
+               size_t num_pixels);
   // The two halves of Setup for a grid level without a stored field (coarse levels): constraints
   // grouped by the cells of `vol`, then positions x0 with identity rotations.
   Status SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
-                          const ocl::Buffer<VdCorrespondence>& constraints, size_t n, const SolverParams& params);
+                          const ocl::Buffer<VdCorrespondence>& constraints, size_t n);
   Status InitState(const ocl::Buffer<vd_float4>& x0);
   // Position step: PCG from the current positions; returns the iterations used.
   StatusOr<int> PositionStep();
@@ -86,7 +86,7 @@ class DeviceSolver {
   VdSolverWeights Weights() const;
 
   DeviceOps* ops_;
-  SolverParams params_;
+  const SolverParams params_;
   VdVolume vol_{};
   const DeviceActiveSet* active_ = nullptr;
   size_t m_ = 0;
@@ -98,7 +98,7 @@ class DeviceSolver {
   ocl::Buffer<float> targets_;
   ocl::Buffer<float> residuals_;
   ocl::Buffer<vd_float4> x_, x_prev_, rot_, rest_, b_, r_, z_, p_, q_;
-  bool cache_btb_ = false;
+  const bool cache_btb_;
   ocl::Buffer<float> btb_;
   ocl::Buffer<int32_t> btb_nbr_;
   // A d into q (both paths).
