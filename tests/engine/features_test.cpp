@@ -65,6 +65,39 @@ TEST(FeatureExtractTest, KeypointsHaveValidDepthAndAreCapped) {
   EXPECT_EQ(h->size_keypoints(), 0u);
 }
 
+TEST(FeatureExtractTest, HalfScaleDetectionMapsBackToFullResolution) {
+  auto scene = Scene("tube");
+  const RgbdFrame frame = scene->Render(0);
+  FeatureParams full, half;
+  // Every full-scale keypoint, so each half-scale one can find its twin.
+  full.max_keypoints = 4096;
+  half.detect_scale = 0.5f;
+  auto a = ExtractFeatures(frame, full, 0.2f, 3.5f);
+  auto b = ExtractFeatures(frame, half, 0.2f, 3.5f);
+  ASSERT_TRUE(a.ok() && b.ok());
+  ASSERT_EQ(b->size_keypoints(), 150u);
+  // Coarse keypoints are found at both scales: most half-scale ones have a full-scale one within
+  // a pixel and 15 % in size, which a mapping off by the scale or by the half-pixel shift misses.
+  int close = 0;
+  for (size_t i = 0; i < b->size_keypoints(); ++i) {
+    const int x = int(std::lround(b->u[i])), y = int(std::lround(b->v[i]));
+    ASSERT_GT(frame.depth.at<uint16_t>(y, x), 0) << "keypoint " << i << " off the valid depth";
+    EXPECT_NEAR(b->camera_points[i].x, (b->u[i] - frame.intrinsics.cx) * b->camera_points[i].z / frame.intrinsics.fx,
+                1e-5f);
+    for (size_t j = 0; j < a->size_keypoints(); ++j) {
+      if (std::hypot(a->u[j] - b->u[i], a->v[j] - b->v[i]) <= 1.f && std::abs(a->size[j] / b->size[i] - 1.f) < 0.15f) {
+        ++close;
+        break;
+      }
+    }
+  }
+  std::printf("half-scale keypoints with a full-scale twin: %d of %zu\n", close, b->size_keypoints());
+  EXPECT_GE(close, 75);
+  FeatureParams bad;
+  bad.detect_scale = 0.3f;
+  EXPECT_FALSE(bad.Validate().ok());
+}
+
 TEST(FeatureExtractTest, NoColourGivesNoFeaturesAndMismatchedSizesAnError) {
   auto scene = Scene("cloth");
   RgbdFrame frame = scene->Render(0);

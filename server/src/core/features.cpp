@@ -47,6 +47,8 @@ Status FeatureParams::Validate() const {
   if (!(w_sparse >= 0.f && w_sparse <= 1e4f)) return BadFeature("w_sparse", w_sparse, "0 <= w_s <= 1e4");
   if (!(max_keypoints >= 1 && max_keypoints <= 4096)) return BadFeature("max_keypoints", max_keypoints, "1..4096");
   if (!(octaves >= 1 && octaves <= 8)) return BadFeature("octaves", octaves, "1..8");
+  if (!(detect_scale == 1.f || detect_scale == 0.5f || detect_scale == 0.25f))
+    return BadFeature("detect_scale", detect_scale, "one of 1, 0.5, 0.25");
   if (!(octave_layers >= 1 && octave_layers <= 8)) return BadFeature("octave_layers", octave_layers, "1..8");
   if (!(contrast_threshold > 0.f && contrast_threshold < 1.f))
     return BadFeature("contrast_threshold", contrast_threshold, "0 < c < 1");
@@ -78,6 +80,9 @@ void FeatureParams::Bind(FlagParser* f) {
   f->Add("w-sparse", &w_sparse, "Weight of the sparse SIFT term E_sparse per match, relative to the dense term");
   f->Add("sift-max-keypoints", &max_keypoints, "SIFT keypoints with valid depth kept per frame (the strongest)");
   f->Add("sift-octaves", &octaves, "Octaves of the DoG scale space (from the upsampled one)");
+  f->Add("sift-detect-scale", &detect_scale,
+         "Detect on the colour image scaled by this (1, 0.5 or 0.25): 0.5 costs about a quarter and drops the "
+         "finest octave");
   f->Add("sift-octave-layers", &octave_layers, "DoG layers per octave");
   f->Add("sift-contrast-threshold", &contrast_threshold, "DoG contrast threshold of the detector");
   f->Add("sift-max-orientations", &max_orientations, "Orientations kept per keypoint location and scale");
@@ -140,22 +145,38 @@ StatusOr<FrameFeatures> ExtractFeatures(const RgbdFrame& frame, const FeaturePar
   const int margin = 24;
   const cv::Rect roi(cv::Point(std::max(0, x0 - margin), std::max(0, y0 - margin)),
                      cv::Point(std::min(depth.cols, x1 + 1 + margin), std::min(depth.rows, y1 + 1 + margin)));
-  const cv::Mat gray_roi = gray(roi), mask_roi = mask(roi);
+  // Detection runs on the box scaled by detect_scale: at 1/2 OpenCV's upsampled first octave is
+  // the full image's own resolution, the scale space costs about a quarter, and the keypoints of
+  // the finest octave (the smallest blobs) are the ones given up.
+  const float scale = params.detect_scale;
+  cv::Mat gray_det = gray(roi), mask_det = mask(roi);
+  if (scale != 1.f) {
+    cv::resize(gray(roi), gray_det, cv::Size(), scale, scale, cv::INTER_AREA);
+    cv::resize(mask(roi), mask_det, gray_det.size(), 0, 0, cv::INTER_NEAREST);
+  }
+  // Octaves of the detection image that are octaves -1 .. octaves - 2 of the full one.
+  const int octave_shift = int(std::lround(std::log2(1.0 / scale)));
+  // Detection-image pixel centres to full-image pixel coordinates.
+  auto to_full = [&](const cv::Point2f& p) {
+    return cv::Point2f((p.x + 0.5f) / scale - 0.5f + float(roi.x), (p.y + 0.5f) / scale - 0.5f + float(roi.y));
+  };
 
   auto sift = cv::SIFT::create(0, params.octave_layers, params.contrast_threshold, 10.0, 1.6);
   std::vector<cv::KeyPoint> detected;
-  sift->detect(gray_roi, detected, mask_roi);
-  for (cv::KeyPoint& kp : detected) kp.pt += cv::Point2f(float(roi.x), float(roi.y));
+  sift->detect(gray_det, detected, mask_det);
   // Strongest first, so the caps below keep the best.
   std::stable_sort(detected.begin(), detected.end(),
                    [](const cv::KeyPoint& a, const cv::KeyPoint& b) { return a.response > b.response; });
-  std::vector<cv::KeyPoint> kept;
-  std::vector<float> zs;
+  // Kept keypoints in the detection image (for the descriptors) and in the full one.
+  std::vector<cv::KeyPoint> kept_det, kept;
   std::map<std::tuple<int, int, int>, int> orientations;
-  for (const cv::KeyPoint& kp : detected) {
+  for (const cv::KeyPoint& kd : detected) {
     if (int(kept.size()) >= params.max_keypoints) break;
-    // Octaves -1 (OpenCV's upsampled first octave) .. octaves - 2.
-    if (KeypointOctave(kp) > params.octaves - 2) continue;
+    // Octaves -1 (OpenCV's upsampled first octave) .. octaves - 2 of the full image.
+    if (KeypointOctave(kd) + octave_shift > params.octaves - 2) continue;
+    cv::KeyPoint kp = kd;
+    kp.pt = to_full(kd.pt);
+    kp.size = kd.size / scale;
     const int x = int(std::lround(kp.pt.x)), y = int(std::lround(kp.pt.y));
     if (x < 1 || y < 1 || x >= depth.cols - 1 || y >= depth.rows - 1) continue;
     float lo = 1e9f, hi = 0.f;
@@ -174,13 +195,12 @@ StatusOr<FrameFeatures> ExtractFeatures(const RgbdFrame& frame, const FeaturePar
     // One location (and scale) with several dominant orientations appears once per orientation.
     auto key = std::make_tuple(int(std::lround(kp.pt.x * 8)), int(std::lround(kp.pt.y * 8)), int(std::lround(kp.size * 8)));
     if (++orientations[key] > params.max_orientations) continue;
+    kept_det.push_back(kd);
     kept.push_back(kp);
   }
   if (kept.empty()) return out;
   cv::Mat desc;
-  for (cv::KeyPoint& kp : kept) kp.pt -= cv::Point2f(float(roi.x), float(roi.y));
-  sift->compute(gray_roi, kept, desc);
-  for (cv::KeyPoint& kp : kept) kp.pt += cv::Point2f(float(roi.x), float(roi.y));
+  sift->compute(gray_det, kept_det, desc);
   const int n = int(kept.size());
   if (desc.rows != n || desc.cols != VD_DESC_BYTES) return Internal("SIFT descriptors do not match the keypoints");
   out.u.resize(n);

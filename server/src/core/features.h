@@ -31,6 +31,9 @@ struct FeatureParams {
   // `max_keypoints` keypoints with valid depth per frame, up to `max_orientations` per location.
   int max_keypoints = 150;
   int octaves = 4;
+  // Scale of the image the keypoints are detected and described on (1, 1/2 or 1/4 of the colour
+  // image); the keypoints are mapped back to full-resolution pixels.
+  float detect_scale = 1.f;
   int octave_layers = 3;
   // DoG contrast threshold of Lowe's detector (OpenCV's default 0.04 is tuned for photographs;
   // sensor colour at 640x480 is softer).
