@@ -2,6 +2,10 @@
 #include <unistd.h>
 
 #include <atomic>
+#include <condition_variable>
+#include <mutex>
+#include <optional>
+#include <thread>
 #include <chrono>
 #include <csignal>
 #include <cstdio>
@@ -33,6 +37,56 @@ std::string FramePath(const std::string& dir, int64_t index, const char* suffix)
   std::snprintf(name, sizeof(name), "frame-%06lld.%s", static_cast<long long>(index), suffix);
   return (std::filesystem::path(dir) / name).string();
 }
+
+// Reads the source on its own thread, one frame ahead of the engine: frame k+1 is decoded and its
+// features detected (Engine::Prefetch) while frame k is solved. Frames come out in source order,
+// each exactly once; the source is only ever touched by the reader thread.
+class FrameReader {
+ public:
+  FrameReader(FrameSource* source, Engine* engine) : source_(source), engine_(engine), thread_([this] { Loop(); }) {}
+  ~FrameReader() {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  // The next frame (std::nullopt at the end), or the read error; blocks until it is read.
+  StatusOr<std::optional<RgbdFrame>> Next() {
+    std::unique_lock<std::mutex> lock(mutex_);
+    cv_.wait(lock, [this] { return slot_.has_value(); });
+    StatusOr<std::optional<RgbdFrame>> out = std::move(*slot_);
+    slot_.reset();
+    cv_.notify_all();
+    return out;
+  }
+
+ private:
+  void Loop() {
+    for (;;) {
+      StatusOr<std::optional<RgbdFrame>> next = source_->Next();
+      const bool last = !next.ok() || !next->has_value();
+      if (!last) engine_->Prefetch(**next);
+      std::unique_lock<std::mutex> lock(mutex_);
+      cv_.wait(lock, [this] { return stop_ || !slot_.has_value(); });
+      if (stop_) return;
+      slot_ = std::move(next);
+      cv_.notify_all();
+      if (last) return;
+    }
+  }
+
+  FrameSource* source_;
+  Engine* engine_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  // The frame read ahead, waiting for Next(); empty while the reader reads.
+  std::optional<StatusOr<std::optional<RgbdFrame>>> slot_;
+  bool stop_ = false;
+  // Declared last: it starts reading as soon as the members above exist.
+  std::thread thread_;
+};
 
 }  // namespace
 
@@ -78,9 +132,9 @@ int RunOffline(const ServerOptions& options) {
   // Frames taken from the source so far; names the output files by their index in the source.
   int64_t delivered = 0;
   const auto t_start = std::chrono::steady_clock::now();
-  // One frame of look-ahead: its features are detected while the current frame is solved.
-  auto next = (*source)->Next();
+  FrameReader reader(source->get(), engine->get());
   while (!g_stop) {
+    auto next = reader.Next();
     if (!next.ok()) {
       const int64_t index = SourceFrameIndex(source_options, delivered);
       return fail(next.status().WithContext("reading frame " + std::to_string(index)));
@@ -88,8 +142,6 @@ int RunOffline(const ServerOptions& options) {
     if (!next->has_value()) break;
     const RgbdFrame frame = std::move(**next);
     const int64_t index = SourceFrameIndex(source_options, delivered++);
-    next = (*source)->Next();
-    if (next.ok() && next->has_value()) (*engine)->Prefetch(**next);
     const auto t0 = std::chrono::steady_clock::now();
     auto result = (*engine)->Process(frame);
     if (!result.ok()) return fail(result.status().WithContext("frame " + std::to_string(frame.seq)));
