@@ -14,9 +14,9 @@
 #include <string>
 #include <vector>
 
-#include "core/device_ops.h"
 #include "core/features.h"
 #include "cpu_ref/features_ref.h"
+#include "ocl/device_ops.h"
 #include "vd/capture/synthetic.h"
 
 namespace vd {

@@ -14,8 +14,8 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "core/device_ops.h"
 #include "core/engine.h"
+#include "ocl/device_ops.h"
 #include "vd/capture/source.h"
 
 namespace vd {

@@ -11,9 +11,9 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "core/device_ops.h"
 #include "core/engine.h"
 #include "cpu_ref/cpu_ref.h"
+#include "ocl/device_ops.h"
 #include "shared/raster.h"
 #include "vd/capture/source.h"
 

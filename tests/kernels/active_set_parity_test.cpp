@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
-#include "core/device_ops.h"
-#include "core/mc_table.h"
 #include "cpu_ref/cpu_ref.h"
+#include "ocl/device_ops.h"
+#include "ocl/mc_table.h"
 #include "sphere_volume.h"
 #include "test_scenes.h"
 

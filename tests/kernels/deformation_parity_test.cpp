@@ -3,8 +3,8 @@
 #include <cmath>
 #include <random>
 
-#include "core/device_ops.h"
 #include "cpu_ref/cpu_ref.h"
+#include "ocl/device_ops.h"
 #include "shared/deformation.h"
 #include "test_scenes.h"
 

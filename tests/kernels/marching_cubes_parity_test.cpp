@@ -5,9 +5,9 @@
 #include <map>
 #include <set>
 
-#include "core/device_ops.h"
-#include "core/mc_table.h"
 #include "cpu_ref/cpu_ref.h"
+#include "ocl/device_ops.h"
+#include "ocl/mc_table.h"
 #include "sphere_volume.h"
 #include "test_scenes.h"
 

@@ -1,7 +1,7 @@
 #include <gtest/gtest.h>
 
-#include "core/device_ops.h"
 #include "cpu_ref/cpu_ref.h"
+#include "ocl/device_ops.h"
 #include "test_scenes.h"
 
 namespace vd {

@@ -2,8 +2,8 @@
 
 #include <cmath>
 
-#include "core/device_ops.h"
 #include "cpu_ref/cpu_ref.h"
+#include "ocl/device_ops.h"
 #include "shared/raster.h"
 #include "test_scenes.h"
 

@@ -3,7 +3,7 @@
 #include <numeric>
 #include <random>
 
-#include "core/device_ops.h"
+#include "ocl/device_ops.h"
 #include "test_scenes.h"
 
 namespace vd {

@@ -4,8 +4,8 @@
 #include <array>
 #include <cmath>
 
-#include "core/device_ops.h"
 #include "cpu_ref/cpu_ref.h"
+#include "ocl/device_ops.h"
 #include "test_scenes.h"
 
 namespace vd {

@@ -6,7 +6,7 @@
  * along +x, +y, +z; a vertex exists when its edge has a sign change and one of the up to four
  * cells sharing the edge is valid, which is exactly when some triangle uses it. The triangle table
  * (16 signed chars per cube index, -1 terminated) is generated on the host
- * (server/src/core/mc_table.cpp) and passed in. */
+ * (server/src/ocl/mc_table.cpp) and passed in. */
 #ifndef VD_MARCHING_CUBES_H
 #define VD_MARCHING_CUBES_H
 

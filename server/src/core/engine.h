@@ -9,12 +9,12 @@
 
 #include <Eigen/Geometry>
 
-#include "core/device_ops.h"
 #include "core/checkpoint.h"
 #include "core/features.h"
 #include "core/hierarchy.h"
 #include "core/rigid_tracker.h"
 #include "core/solver.h"
+#include "ocl/device_ops.h"
 #include "vd/common/frame.h"
 #include "vd/common/mesh.h"
 #include "vd/common/status.h"

@@ -390,10 +390,9 @@ Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& his
   VD_RETURN_IF_ERROR(ctx_->Upload(cand_canonical_, cand_canonical_host_.data(), size_t(n_cand)));
   VD_RETURN_IF_ERROR(ctx_->Upload(frames_, frames_host_.data(), frames_host_.size()));
   VD_RETURN_IF_ERROR(
-      ocl::kFeaturePredict(*ctx_, size_t(n_cand), cand_canonical_, volume.def_pos, volume.vol, cand_predicted_));
-  VD_RETURN_IF_ERROR(ocl::kMatchDistances(*ctx_, size_t(n_cand), cur_desc_, n_cur, cand_desc_, n_cand, dist_));
-  VD_RETURN_IF_ERROR(ocl::kMatchRows(*ctx_, size_t(n_cur) * num_frames, dist_, n_cur, n_cand, frames_, rows_));
-  VD_RETURN_IF_ERROR(ocl::kMatchColumns(*ctx_, size_t(n_cand), dist_, n_cur, n_cand, cols_));
+      ocl::PredictFeatures(*ctx_, size_t(n_cand), cand_canonical_, volume.def_pos, volume.vol, cand_predicted_));
+  VD_RETURN_IF_ERROR(
+      ocl::MatchBest(*ctx_, cur_desc_, n_cur, cand_desc_, n_cand, frames_, num_frames, dist_, rows_, cols_));
   rows_host_.resize(size_t(n_cur) * num_frames);
   cols_host_.resize(size_t(n_cand));
   predicted_host_.resize(size_t(n_cand));
@@ -483,7 +482,7 @@ Status FeatureMatcher::Lift(FrameFeatures* f, const DeviceRaster& raster, const 
   VD_RETURN_IF_ERROR(ctx_->Reserve(&lift_out_, n));
   VD_RETURN_IF_ERROR(ctx_->Upload(lift_points_, points.data(), n));
   VD_RETURN_IF_ERROR(ctx_->Upload(lift_pixels_, pixels.data(), n));
-  VD_RETURN_IF_ERROR(ocl::kFeatureLift(*ctx_, n, lift_points_, lift_pixels_, raster.ids, raster.bary, raster.vertex,
+  VD_RETURN_IF_ERROR(ocl::LiftFeatures(*ctx_, n, lift_points_, lift_pixels_, raster.ids, raster.bary, raster.vertex,
                                        mesh.positions_grid, mesh.triangles, volume.def_pos, volume.vol, lp, lift_out_));
   return ctx_->Download(lift_out_, f->canonical.data(), n);
 }

@@ -11,7 +11,7 @@
 #include <mutex>
 #include <vector>
 
-#include "core/device_ops.h"
+#include "ocl/device_ops.h"
 #include "shared/features.h"
 #include "vd/common/frame.h"
 #include "vd/common/status.h"

@@ -23,17 +23,15 @@ Status HierarchicalSolver::BuildLevel(const DeviceVolume& v, const DeviceActiveS
   VD_RETURN_IF_ERROR(ctx.Reserve(&L->row_offset, rows + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&L->active.compact, n));
   VD_RETURN_IF_ERROR(ctx.Fill(L->member, uint8_t(0), n));
-  VD_RETURN_IF_ERROR(ocl::kLevelMark(ctx, fine.count, fine.list, v.vol, L->spacing, L->vol, L->member));
-  VD_RETURN_IF_ERROR(ocl::kLevelRowCount(ctx, rows, L->member, L->vol, L->row_count));
+  VD_RETURN_IF_ERROR(ocl::MarkLevel(ctx, fine.count, fine.list, v.vol, L->spacing, L->vol, L->member));
+  VD_RETURN_IF_ERROR(ocl::CountLevelRows(ctx, L->member, L->vol, L->row_count));
   uint32_t total = 0;
   VD_RETURN_IF_ERROR(ops_->ScanExclusive(L->row_count, rows, L->row_offset, &total));
   L->active.count = total;
   VD_RETURN_IF_ERROR(ctx.Reserve(&L->active.list, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&L->active.neighbours, 6 * std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&L->x0, std::max<size_t>(total, 1)));
-  VD_RETURN_IF_ERROR(
-      ocl::kActiveCompact(ctx, rows, L->member, L->row_offset, L->vol, L->active.list, L->active.compact));
-  return ocl::kActiveNeighbours(ctx, total, L->active.list, L->active.compact, L->vol, L->active.neighbours);
+  return ocl::CompactActiveSet(ctx, L->member, L->row_offset, L->vol, &L->active);
 }
 
 Status HierarchicalSolver::Prepare(const DeviceVolume& v, const DeviceActiveSet& fine) {
@@ -66,11 +64,11 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
       Level& L = *levels_[i];
       if (L.active.count == 0) continue;
       const int s = L.spacing;
-      VD_RETURN_IF_ERROR(ocl::kLevelRestrict(ctx, L.active.count, L.active.list, L.vol, s, fine_active_->compact, v.vol,
-                                             fine_.positions(), L.x0));
+      VD_RETURN_IF_ERROR(ocl::RestrictPositions(ctx, L.active.count, L.active.list, L.vol, s, fine_active_->compact,
+                                                v.vol, fine_.positions(), L.x0));
       VD_RETURN_IF_ERROR(ctx.Reserve(&L.cons, std::max<size_t>(nc, 1)));
-      VD_RETURN_IF_ERROR(ocl::kLevelConstraints(ctx, nc, fine_.constraints(), fine_active_->compact, v.vol,
-                                                fine_.positions(), s, L.active.compact, L.vol, L.x0, L.cons));
+      VD_RETURN_IF_ERROR(ocl::RestrictConstraints(ctx, nc, fine_.constraints(), fine_active_->compact, v.vol,
+                                                  fine_.positions(), s, L.active.compact, L.vol, L.x0, L.cons));
       VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.vol, L.active, L.cons, nc));
       VD_RETURN_IF_ERROR(L.solver.InitState(L.x0));
       // Rotations of the restricted state first, then the flip-flop.
@@ -78,8 +76,9 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
       VD_ASSIGN_OR_RETURN(SolverSummary ls, L.solver.Solve(params.coarse_flip_flop_iterations, false));
 
       summary.pcg_iterations += ls.pcg_iterations;
-      VD_RETURN_IF_ERROR(ocl::kLevelProlongate(ctx, fine_active_->count, fine_active_->list, v.vol, s, L.active.compact,
-                                               L.vol, L.solver.positions(), L.x0, fine_.mutable_positions()));
+      VD_RETURN_IF_ERROR(ocl::ProlongateIncrement(ctx, fine_active_->count, fine_active_->list, v.vol, s,
+                                                  L.active.compact, L.vol, L.solver.positions(), L.x0,
+                                                  fine_.mutable_positions()));
     }
     // The fine rotations follow the prolongated positions before the fine flip-flop.
     VD_RETURN_IF_ERROR(fine_.RotationStep());

@@ -62,7 +62,7 @@ Status DeviceSolver::Setup(const DeviceVolume& v, const DeviceActiveSet& active,
                            const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
   if (!v.has_deformation()) return FailedPrecondition("the solver needs a grid with a deformation field");
   VD_RETURN_IF_ERROR(SetupConstraints(v.vol, active, per_pixel, num_pixels));
-  return ocl::kSolverGatherState(ops_->ctx(), m_, active.list, v.def_pos, v.def_rot, x_, rot_);
+  return ocl::GatherState(ops_->ctx(), m_, active.list, v.def_pos, v.def_rot, x_, rot_);
 }
 
 Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0) {
@@ -83,11 +83,11 @@ Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_count_, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_start_, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_of_, std::max<size_t>(num_pixels, 1)));
-  VD_RETURN_IF_ERROR(ocl::kSolverRest(ctx, m_, active.list, vol_, rest_));
+  VD_RETURN_IF_ERROR(ocl::RestPositions(ctx, m_, active.list, vol_, rest_));
 
   // Counting sort of the constraints by cell.
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
-  VD_RETURN_IF_ERROR(ocl::kConstraintCount(ctx, num_pixels, per_pixel, active.compact, vol_, cell_of_, cell_count_));
+  VD_RETURN_IF_ERROR(ocl::CountConstraints(ctx, num_pixels, per_pixel, active.compact, vol_, cell_of_, cell_count_));
   uint32_t total = 0;
   VD_RETURN_IF_ERROR(ops_->ScanExclusive(cell_count_, m_, cell_start_, &total));
   num_constraints_ = total;
@@ -95,16 +95,16 @@ Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet
   VD_RETURN_IF_ERROR(ctx.Reserve(&targets_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&residuals_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
-  VD_RETURN_IF_ERROR(ocl::kConstraintScatter(ctx, num_pixels, per_pixel, cell_of_, cell_start_, cell_count_, cons_));
-  VD_RETURN_IF_ERROR(ocl::kConstraintTargets(ctx, total, cons_, targets_));
+  VD_RETURN_IF_ERROR(ocl::SortConstraints(ctx, num_pixels, per_pixel, cell_of_, cell_start_, cell_count_, cons_));
+  VD_RETURN_IF_ERROR(ocl::ConstraintTargets(ctx, total, cons_, targets_));
   if (cache_btb_) {
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * std::max<size_t>(m_, 1)));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * std::max<size_t>(m_, 1)));
     VD_RETURN_IF_ERROR(
-        ocl::kBtbBuild(ctx, m_, active.list, active.compact, vol_, cons_, cell_start_, Weights(), btb_, btb_nbr_));
+        ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, cons_, cell_start_, Weights(), btb_, btb_nbr_));
   }
-  return ocl::kSystemDataDiag(ctx, m_, active.list, active.compact, vol_, active.neighbours, cons_, cell_start_,
-                              targets_, Weights(), data_rhs_, diag_inv_);
+  return ocl::DataRhsAndDiagonal(ctx, m_, active.list, active.compact, vol_, active.neighbours, cons_, cell_start_,
+                                 targets_, Weights(), data_rhs_, diag_inv_);
 }
 
 StatusOr<double> DeviceSolver::SumPartials(size_t groups) {
@@ -118,7 +118,7 @@ StatusOr<double> DeviceSolver::SumPartials(size_t groups) {
 StatusOr<double> DeviceSolver::Dot(const ocl::Buffer<vd_float4>& a, const ocl::Buffer<vd_float4>& b) {
   const size_t groups = (m_ + kChunk - 1) / kChunk;
   VD_RETURN_IF_ERROR(ops_->ctx().Reserve(&partials_, std::max<size_t>(groups, 1)));
-  VD_RETURN_IF_ERROR(ocl::kDot4Partial(ops_->ctx(), groups, a, b, int(m_), kChunk, partials_));
+  VD_RETURN_IF_ERROR(ocl::DotPartials(ops_->ctx(), groups, a, b, int(m_), kChunk, partials_));
   return SumPartials(groups);
 }
 
@@ -126,9 +126,9 @@ Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float
   ocl::Context& ctx = ops_->ctx();
   const auto& a = *active_;
   const VdSolverWeights w = Weights();
-  if (cache_btb_) return ocl::kSystemApplyCached(ctx, m_, a.neighbours, btb_, btb_nbr_, d, w, q);
-  VD_RETURN_IF_ERROR(ocl::kConstraintResiduals(ctx, num_constraints_, cons_, a.compact, vol_, d, residuals_));
-  return ocl::kSystemApply(ctx, m_, a.list, a.compact, vol_, a.neighbours, cons_, cell_start_, residuals_, d, w, q);
+  if (cache_btb_) return ocl::ApplySystemCached(ctx, m_, a.neighbours, btb_, btb_nbr_, d, w, q);
+  VD_RETURN_IF_ERROR(ocl::ConstraintResiduals(ctx, num_constraints_, cons_, a.compact, vol_, d, residuals_));
+  return ocl::ApplySystem(ctx, m_, a.list, a.compact, vol_, a.neighbours, cons_, cell_start_, residuals_, d, w, q);
 }
 
 StatusOr<int> DeviceSolver::PositionStep() {
@@ -137,11 +137,11 @@ StatusOr<int> DeviceSolver::PositionStep() {
   const VdSolverWeights w = Weights();
   const auto& a = *active_;
   VD_RETURN_IF_ERROR(ctx.Copy(x_, x_prev_, m_));
-  VD_RETURN_IF_ERROR(ocl::kSystemRhs(ctx, m_, a.list, vol_, a.neighbours, rot_, data_rhs_, x_prev_, w, b_));
+  VD_RETURN_IF_ERROR(ocl::SystemRhs(ctx, m_, a.list, vol_, a.neighbours, rot_, data_rhs_, x_prev_, w, b_));
   // r = b - A x
   VD_RETURN_IF_ERROR(Apply(x_, r_));
-  VD_RETURN_IF_ERROR(ocl::kSubFrom4(ctx, m_, b_, r_));
-  VD_RETURN_IF_ERROR(ocl::kPcgPrecondition(ctx, m_, diag_inv_, r_, z_));
+  VD_RETURN_IF_ERROR(ocl::SubFrom(ctx, m_, b_, r_));
+  VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, z_));
   VD_RETURN_IF_ERROR(ctx.Copy(z_, p_, m_));
   VD_ASSIGN_OR_RETURN(double rz, Dot(r_, z_));
   VD_ASSIGN_OR_RETURN(double bb, Dot(b_, b_));
@@ -154,19 +154,19 @@ StatusOr<int> DeviceSolver::PositionStep() {
     VD_ASSIGN_OR_RETURN(double pq, Dot(p_, q_));
     if (!(pq > 0.0)) break;
     const float alpha = float(rz / pq);
-    VD_RETURN_IF_ERROR(ocl::kAxpy4(ctx, m_, alpha, p_, x_));
-    VD_RETURN_IF_ERROR(ocl::kAxpy4(ctx, m_, -alpha, q_, r_));
-    VD_RETURN_IF_ERROR(ocl::kPcgPrecondition(ctx, m_, diag_inv_, r_, z_));
+    VD_RETURN_IF_ERROR(ocl::Axpy(ctx, m_, alpha, p_, x_));
+    VD_RETURN_IF_ERROR(ocl::Axpy(ctx, m_, -alpha, q_, r_));
+    VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, z_));
     VD_ASSIGN_OR_RETURN(double rz_new, Dot(r_, z_));
     const float beta = float(rz_new / rz);
     rz = rz_new;
-    VD_RETURN_IF_ERROR(ocl::kXpay4(ctx, m_, beta, z_, p_));
+    VD_RETURN_IF_ERROR(ocl::Xpay(ctx, m_, beta, z_, p_));
   }
   return it;
 }
 
 Status DeviceSolver::RotationStep() {
-  return ocl::kProcrustes(ops_->ctx(), m_, active_->neighbours, x_, rest_, rot_);
+  return ocl::FitRotations(ops_->ctx(), m_, active_->neighbours, x_, rest_, rot_);
 }
 
 StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {
@@ -176,12 +176,12 @@ StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {
   double ed = 0.0, er = 0.0;
   if (gc) {
     VD_RETURN_IF_ERROR(
-        ocl::kEnergyDensePartial(ctx, gc, cons_, int(num_constraints_), kChunk, active_->compact, vol_, x_, partials_));
+        ocl::DenseEnergyPartials(ctx, gc, cons_, int(num_constraints_), kChunk, active_->compact, vol_, x_, partials_));
     VD_ASSIGN_OR_RETURN(ed, SumPartials(gc));
   }
   if (gp) {
-    VD_RETURN_IF_ERROR(ocl::kEnergyArapPartial(ctx, gp, active_->list, active_->neighbours, vol_, x_, rot_, int(m_),
-                                               kChunk, partials_));
+    VD_RETURN_IF_ERROR(ocl::ArapEnergyPartials(ctx, gp, active_->list, active_->neighbours, vol_, x_, rot_, int(m_),
+                                                kChunk, partials_));
     VD_ASSIGN_OR_RETURN(er, SumPartials(gp));
   }
   if (dense) *dense = ed;
@@ -209,7 +209,7 @@ StatusOr<SolverSummary> DeviceSolver::Solve(int iterations, bool energies) {
 }
 
 Status DeviceSolver::WriteBack(DeviceVolume& v) {
-  return ocl::kSolverScatterState(ops_->ctx(), m_, active_->list, x_, rot_, v.def_pos, v.def_rot);
+  return ocl::ScatterState(ops_->ctx(), m_, active_->list, x_, rot_, v.def_pos, v.def_rot);
 }
 
 }  // namespace vd

@@ -5,7 +5,7 @@
 // cell (shared/solver.h). Caller-owned buffers are reused: nothing is allocated once warm.
 #include <cstdint>
 
-#include "core/device_ops.h"
+#include "ocl/device_ops.h"
 #include "shared/solver.h"
 
 namespace vd {

@@ -2,7 +2,7 @@
 
 #include <numeric>
 
-#include "core/mc_table.h"
+#include "ocl/mc_table.h"
 #include "shared/active_set.h"
 #include "shared/deformation.h"
 #include "shared/hierarchy.h"

@@ -7,6 +7,10 @@
 #include "ocl/kernel.h"
 #include "shared/active_set.h"
 
+namespace vd {
+struct DeviceActiveSet;
+}  // namespace vd
+
 namespace vd::ocl {
 
 // One item per grid row (y, z).
@@ -22,5 +26,12 @@ inline constexpr Kernel<void(const Buffer<uint8_t>& member, const Buffer<uint32_
 // One item per active point.
 inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
                              Buffer<int32_t>& neighbours)> kActiveNeighbours{"vd_active_neighbours"};
+
+
+// The member list, dense -> compact map and neighbour table of the active set `out` of grid `vol`
+// from its membership flags and their per-row exclusive scan; out->count already holds the total.
+// DeviceOps::BuildActiveSet and each level of the hierarchy (core/hierarchy.cpp) end with it.
+Status CompactActiveSet(Context& ctx, const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, VdVolume vol,
+                        DeviceActiveSet* out);
 
 }  // namespace vd::ocl

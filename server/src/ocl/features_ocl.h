@@ -28,4 +28,22 @@ inline constexpr Kernel<void(const Buffer<vd_float4>& points, const Buffer<int32
                              const Buffer<int32_t>& tris, const Buffer<vd_float4>& def_pos, VdVolume vol,
                              VdLiftParams prm, Buffer<vd_float4>& out)> kFeatureLift{"vd_feature_lift_kernel"};
 
+
+// Launchers of FeatureMatcher (core/features.cpp), which prunes the matches on the host.
+
+// The n candidates' canonical positions deformed by the current field (w = 0 where it has none).
+Status PredictFeatures(Context& ctx, size_t n, const Buffer<vd_float4>& canonical, const Buffer<vd_float4>& def_pos,
+                       VdVolume vol, Buffer<vd_float4>& out);
+// Descriptor distances of every (current, candidate) pair, then each current feature's best
+// candidate per frame (rows) and each candidate's best current feature (cols): mutual matches
+// are where the two agree.
+Status MatchBest(Context& ctx, const Buffer<uint8_t>& cur, int n_cur, const Buffer<uint8_t>& cand, int n_cand,
+                 const Buffer<int32_t>& frames, int num_frames, Buffer<float>& dist, Buffer<VdMatchBest>& rows,
+                 Buffer<VdMatchBest>& cols);
+// Canonical positions of n keypoints by Newton on S(g) = f from the rendered surface's estimate.
+Status LiftFeatures(Context& ctx, size_t n, const Buffer<vd_float4>& points, const Buffer<int32_t>& pixels,
+                    const Buffer<uint32_t>& ids, const Buffer<vd_float4>& bary, const Buffer<vd_float4>& raster_vertex,
+                    const Buffer<vd_float4>& canon, const Buffer<int32_t>& tris, const Buffer<vd_float4>& def_pos,
+                    VdVolume vol, VdLiftParams prm, Buffer<vd_float4>& out);
+
 }  // namespace vd::ocl

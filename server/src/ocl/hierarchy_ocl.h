@@ -29,4 +29,26 @@ inline constexpr Kernel<void(const Buffer<int32_t>& list_f, VdVolume fine, int s
                              VdVolume coarse, const Buffer<vd_float4>& x_c, const Buffer<vd_float4>& x0_c,
                              Buffer<vd_float4>& x_f)> kLevelProlongate{"vd_level_prolongate_kernel"};
 
+
+// Launchers of HierarchicalSolver (core/hierarchy.cpp), which orders them coarse to fine.
+
+// Flags the coarse grid points whose cells hold one of the n fine active points.
+Status MarkLevel(Context& ctx, size_t n, const Buffer<int32_t>& list_f, VdVolume fine, int s, VdVolume coarse,
+                 Buffer<uint8_t>& member);
+// Members per coarse grid row, for the scan that places each row's members in the list.
+Status CountLevelRows(Context& ctx, const Buffer<uint8_t>& member, VdVolume coarse, Buffer<uint32_t>& row_count);
+// The n coarse points' starting positions x0_c from the current fine state.
+Status RestrictPositions(Context& ctx, size_t n, const Buffer<int32_t>& list_c, VdVolume coarse, int s,
+                         const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<vd_float4>& x_f,
+                         Buffer<vd_float4>& x0_c);
+// The n fine constraints re-expressed on the coarse grid, so the level solves for an increment.
+Status RestrictConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons_f,
+                           const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<vd_float4>& x_f, int s,
+                           const Buffer<int32_t>& compact_c, VdVolume coarse, const Buffer<vd_float4>& x0_c,
+                           Buffer<VdCorrespondence>& cons_c);
+// Adds the coarse increment x_c - x0_c, interpolated, to the n fine active points' x_f.
+Status ProlongateIncrement(Context& ctx, size_t n, const Buffer<int32_t>& list_f, VdVolume fine, int s,
+                           const Buffer<int32_t>& compact_c, VdVolume coarse, const Buffer<vd_float4>& x_c,
+                           const Buffer<vd_float4>& x0_c, Buffer<vd_float4>& x_f);
+
 }  // namespace vd::ocl

@@ -13,4 +13,10 @@ namespace vd::ocl {
 inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t,
                              const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot)> kProcrustes{"vd_procrustes"};
 
+
+// The rotation step of DeviceSolver (core/solver.cpp): R_k of each of the m active points fitted
+// to its neighbours' current positions t against their rest positions t_hat.
+Status FitRotations(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t,
+                    const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot);
+
 }  // namespace vd::ocl

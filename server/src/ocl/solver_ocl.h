@@ -73,4 +73,70 @@ inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>&
 inline constexpr Kernel<void(const Buffer<int32_t>& list, VdVolume vol,
                              Buffer<vd_float4>& t_hat)> kSolverRest{"vd_solver_rest"};
 
+// Launchers of DeviceSolver (core/solver.cpp), one per step it takes on the device; `m` active
+// points (the items of the per-point kernels above), `n` constraints or elements where said.
+
+// The compact state (x, rot) of the active points from the grid's field: the solve starts there.
+Status GatherState(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<vd_float4>& def_pos,
+                   const Buffer<vd_float4>& def_rot, Buffer<vd_float4>& x, Buffer<vd_float4>& rot);
+// The solved state back into the grid's field (counting the optimisation).
+Status ScatterState(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<vd_float4>& x,
+                    const Buffer<vd_float4>& rot, Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot);
+// The rest positions t_hat of the ARAP prior: the active points' grid positions.
+Status RestPositions(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, Buffer<vd_float4>& t_hat);
+// First half of the counting sort of the n per-pixel constraints by cell (so that A applies
+// per point without atomics): each constraint's cell and the per-cell counts.
+Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& compact,
+                        VdVolume vol, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts);
+// Second half, after the counts' scan into cell_start: the constraints in cell order.
+Status SortConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& cell_of,
+                       const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor, Buffer<VdCorrespondence>& sorted);
+// Each sorted constraint's target term, fixed per solve.
+Status ConstraintTargets(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, Buffer<float>& targets);
+// The constraint-only part of b and the Jacobi preconditioner, fixed per solve.
+Status DataRhsAndDiagonal(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact,
+                          VdVolume vol, const Buffer<int32_t>& neighbours, const Buffer<VdCorrespondence>& cons,
+                          const Buffer<uint32_t>& cell_start, const Buffer<float>& targets, VdSolverWeights w,
+                          Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv);
+// b of the position step from the current rotations and the previous positions.
+Status SystemRhs(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
+                 const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs, const Buffer<vd_float4>& x_prev,
+                 VdSolverWeights w, Buffer<vd_float4>& b);
+// B d for the n sorted constraints: the first half of A d when B^T B is not cached.
+Status ConstraintResiduals(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, const Buffer<int32_t>& compact,
+                           VdVolume vol, const Buffer<vd_float4>& d, Buffer<float>& r);
+// q = A d from those residuals, summed per point over its cell's constraints.
+Status ApplySystem(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
+                   const Buffer<int32_t>& neighbours, const Buffer<VdCorrespondence>& cons,
+                   const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
+                   VdSolverWeights w, Buffer<vd_float4>& q);
+// B^T B as 27 3x3 blocks per point, built once per solve so each PCG iteration skips the constraints.
+Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
+                const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start, VdSolverWeights w,
+                Buffer<float>& blocks, Buffer<int32_t>& nbr);
+// q = A d from the blocks of BuildBtb.
+Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& blocks,
+                         const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d, VdSolverWeights w,
+                         Buffer<vd_float4>& q);
+// The PCG steps over n points; z = M^-1 r with the Jacobi blocks of DataRhsAndDiagonal.
+Status Precondition(Context& ctx, size_t n, const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& r,
+                    Buffer<vd_float4>& z);
+// y = a x + y.
+Status Axpy(Context& ctx, size_t n, float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y);
+// y = x + a y (the new search direction).
+Status Xpay(Context& ctx, size_t n, float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y);
+// y = b - y (the initial residual from A x).
+Status SubFrom(Context& ctx, size_t n, const Buffer<vd_float4>& b, Buffer<vd_float4>& y);
+// a . b over n points as partial sums over `groups` chunks of `chunk` (summed on the host, in double).
+Status DotPartials(Context& ctx, size_t groups, const Buffer<vd_float4>& a, const Buffer<vd_float4>& b, int n,
+                   int chunk, Buffer<float>& partials);
+// E_dense over n sorted constraints, partial sums as for DotPartials.
+Status DenseEnergyPartials(Context& ctx, size_t groups, const Buffer<VdCorrespondence>& cons, int n, int chunk,
+                           const Buffer<int32_t>& compact, VdVolume vol, const Buffer<vd_float4>& x,
+                           Buffer<float>& partials);
+// E_reg over n active points, partial sums as for DotPartials.
+Status ArapEnergyPartials(Context& ctx, size_t groups, const Buffer<int32_t>& list, const Buffer<int32_t>& neighbours,
+                          VdVolume vol, const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot, int n, int chunk,
+                          Buffer<float>& partials);
+
 }  // namespace vd::ocl

@@ -1,6 +1,8 @@
 #pragma once
 // Launchers of the OpenCL kernels: each mirrors a function of cpu_ref.h on device buffers.
 // Scratch buffers are owned here and grow only, so nothing is allocated per frame once warm.
+// Each method is defined in the <family>_ocl.cpp of the kernels it launches (IntegrateTsdf in
+// tsdf_ocl.cpp, ...); allocation in device_ops.cpp.
 #include <cstdint>
 
 #include "ocl/ocl.h"

@@ -1,4 +1,4 @@
-#include "core/mc_table.h"
+#include "ocl/mc_table.h"
 
 #include <cassert>
 #include <cstdlib>

@@ -1,0 +1,41 @@
+// DeviceOps' launchers of kernels/active_set.cl (class in ocl/device_ops.h).
+#include "ocl/active_set_ocl.h"
+
+#include <algorithm>
+
+#include "ocl/device_ops.h"
+
+namespace vd {
+
+Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
+  const size_t n = v.num_voxels(), rows = v.num_rows();
+  if (mc_codes_.size() < n) return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on this grid");
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_surface_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_member_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_count_, rows));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_offset_, rows + 1));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_surface_, rows));
+  VD_RETURN_IF_ERROR(ocl::kActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, v.vol, active_surface_,
+                                         active_row_surface_));
+  VD_RETURN_IF_ERROR(
+      ocl::kActiveDilate(*ctx_, rows, active_surface_, active_row_surface_, v.vol, active_member_, active_row_count_));
+  uint32_t total = 0;
+  VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
+  out->count = total;
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1)));
+  return ocl::CompactActiveSet(*ctx_, active_member_, active_row_offset_, v.vol, out);
+}
+
+namespace ocl {
+
+Status CompactActiveSet(Context& ctx, const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, VdVolume vol,
+                        DeviceActiveSet* out) {
+  const size_t rows = size_t(vol.dim_y) * vol.dim_z;
+  VD_RETURN_IF_ERROR(kActiveCompact(ctx, rows, member, row_offset, vol, out->list, out->compact));
+  return kActiveNeighbours(ctx, out->count, out->list, out->compact, vol, out->neighbours);
+}
+
+}  // namespace ocl
+}  // namespace vd

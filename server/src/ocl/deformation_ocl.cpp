@@ -1,0 +1,34 @@
+// DeviceOps' launchers of kernels/deformation.cl (class in ocl/device_ops.h).
+#include "ocl/deformation_ocl.h"
+
+#include <algorithm>
+
+#include "ocl/device_ops.h"
+
+namespace vd {
+
+Status DeviceOps::ResetVolume(DeviceVolume& v) {
+  const size_t n = v.num_voxels();
+  VD_RETURN_IF_ERROR(ctx_->Fill(v.tsdf, 1.0f, n));
+  VD_RETURN_IF_ERROR(ctx_->Fill(v.weight, 0.0f, n));
+  VD_RETURN_IF_ERROR(ctx_->Fill(v.color, 0u, n));
+  if (!v.has_deformation()) return Status::Ok();
+  return ocl::kDeformationReset(*ctx_, v.num_rows(), v.def_pos, v.def_rot, v.vol);
+}
+
+Status DeviceOps::DeformVertices(const DeviceVolume& v, DeviceMesh* mesh) {
+  if (!v.has_deformation()) return FailedPrecondition("DeformVertices: the grid has no deformation field");
+  return ocl::kDeformVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, v.def_pos, v.vol, mesh->positions);
+}
+
+Status DeviceOps::Extrapolate(DeviceVolume& v, const DeviceActiveSet& active) {
+  if (!v.has_deformation()) return FailedPrecondition("Extrapolate needs a deformation field");
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_pos_, std::max<size_t>(active.count, 1)));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_rot_, std::max<size_t>(active.count, 1)));
+  VD_RETURN_IF_ERROR(ocl::kExtrapolate(*ctx_, active.count, active.list, v.def_pos, v.def_rot, v.vol, extrapolated_pos_,
+                                       extrapolated_rot_));
+  return ocl::kExtrapolateCommit(*ctx_, active.count, active.list, extrapolated_pos_, extrapolated_rot_, v.def_pos,
+                                 v.def_rot);
+}
+
+}  // namespace vd

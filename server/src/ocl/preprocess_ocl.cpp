@@ -1,0 +1,35 @@
+// DeviceOps' launchers of kernels/preprocess.cl (class in ocl/device_ops.h).
+#include "ocl/preprocess_ocl.h"
+
+#include "ocl/device_ops.h"
+
+namespace vd {
+
+Status DeviceOps::DepthConvert(const ocl::Buffer<uint16_t>& raw, ocl::Buffer<float>& depth, int n, float inv_scale,
+                               float min_depth, float max_depth) {
+  return ocl::kDepthConvert(*ctx_, n, raw, depth, inv_scale, min_depth, max_depth);
+}
+
+Status DeviceOps::Bilateral(const ocl::Buffer<float>& in, ocl::Buffer<float>& out, int width, int height, int radius,
+                            float sigma_space_px, float sigma_depth_m) {
+  const float is = 0.5f / (sigma_space_px * sigma_space_px);
+  const float id = 0.5f / (sigma_depth_m * sigma_depth_m);
+  return ocl::kBilateral(*ctx_, static_cast<size_t>(width) * height, in, out, width, height, radius, is, id);
+}
+
+Status DeviceOps::PyrDown(const ocl::Buffer<float>& in, ocl::Buffer<float>& out, int width, int height,
+                          float max_diff) {
+  const int ow = width / 2;
+  return ocl::kPyrDown(*ctx_, static_cast<size_t>(ow) * (height / 2), in, out, width, ow, max_diff);
+}
+
+Status DeviceOps::VertexMap(const ocl::Buffer<float>& depth, ocl::Buffer<vd_float4>& vmap, VdCamera cam) {
+  return ocl::kVertexMap(*ctx_, static_cast<size_t>(cam.width) * cam.height, depth, vmap, cam);
+}
+
+Status DeviceOps::NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_float4>& nmap, int width, int height,
+                            float max_jump) {
+  return ocl::kNormalMap(*ctx_, static_cast<size_t>(width) * height, vmap, nmap, width, height, max_jump);
+}
+
+}  // namespace vd

@@ -1,0 +1,11 @@
+// The launcher of kernels/procrustes.cl that DeviceSolver (core/solver.cpp) calls.
+#include "ocl/procrustes_ocl.h"
+
+namespace vd::ocl {
+
+Status FitRotations(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t,
+                    const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot) {
+  return kProcrustes(ctx, m, neighbours, t, t_hat, rot);
+}
+
+}  // namespace vd::ocl

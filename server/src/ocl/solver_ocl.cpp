@@ -1,0 +1,105 @@
+// The launchers of kernels/solver.cl that DeviceSolver (core/solver.cpp) calls.
+#include "ocl/solver_ocl.h"
+
+namespace vd::ocl {
+
+Status GatherState(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<vd_float4>& def_pos,
+                   const Buffer<vd_float4>& def_rot, Buffer<vd_float4>& x, Buffer<vd_float4>& rot) {
+  return kSolverGatherState(ctx, m, list, def_pos, def_rot, x, rot);
+}
+
+Status ScatterState(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<vd_float4>& x,
+                    const Buffer<vd_float4>& rot, Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot) {
+  return kSolverScatterState(ctx, m, list, x, rot, def_pos, def_rot);
+}
+
+Status RestPositions(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, Buffer<vd_float4>& t_hat) {
+  return kSolverRest(ctx, m, list, vol, t_hat);
+}
+
+Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& compact,
+                        VdVolume vol, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts) {
+  return kConstraintCount(ctx, n, corr, compact, vol, cell_of, counts);
+}
+
+Status SortConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& cell_of,
+                       const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor, Buffer<VdCorrespondence>& sorted) {
+  return kConstraintScatter(ctx, n, corr, cell_of, cell_start, cursor, sorted);
+}
+
+Status ConstraintTargets(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, Buffer<float>& targets) {
+  return kConstraintTargets(ctx, n, cons, targets);
+}
+
+Status DataRhsAndDiagonal(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact,
+                          VdVolume vol, const Buffer<int32_t>& neighbours, const Buffer<VdCorrespondence>& cons,
+                          const Buffer<uint32_t>& cell_start, const Buffer<float>& targets, VdSolverWeights w,
+                          Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
+  return kSystemDataDiag(ctx, m, list, compact, vol, neighbours, cons, cell_start, targets, w, data_rhs, diag_inv);
+}
+
+Status SystemRhs(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
+                 const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs, const Buffer<vd_float4>& x_prev,
+                 VdSolverWeights w, Buffer<vd_float4>& b) {
+  return kSystemRhs(ctx, m, list, vol, neighbours, rot, data_rhs, x_prev, w, b);
+}
+
+Status ConstraintResiduals(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, const Buffer<int32_t>& compact,
+                           VdVolume vol, const Buffer<vd_float4>& d, Buffer<float>& r) {
+  return kConstraintResiduals(ctx, n, cons, compact, vol, d, r);
+}
+
+Status ApplySystem(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
+                   const Buffer<int32_t>& neighbours, const Buffer<VdCorrespondence>& cons,
+                   const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
+                   VdSolverWeights w, Buffer<vd_float4>& q) {
+  return kSystemApply(ctx, m, list, compact, vol, neighbours, cons, cell_start, r, d, w, q);
+}
+
+Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
+                const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start, VdSolverWeights w,
+                Buffer<float>& blocks, Buffer<int32_t>& nbr) {
+  return kBtbBuild(ctx, m, list, compact, vol, cons, cell_start, w, blocks, nbr);
+}
+
+Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& blocks,
+                         const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d, VdSolverWeights w,
+                         Buffer<vd_float4>& q) {
+  return kSystemApplyCached(ctx, m, neighbours, blocks, nbr, d, w, q);
+}
+
+Status Precondition(Context& ctx, size_t n, const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& r,
+                    Buffer<vd_float4>& z) {
+  return kPcgPrecondition(ctx, n, diag_inv, r, z);
+}
+
+Status Axpy(Context& ctx, size_t n, float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y) {
+  return kAxpy4(ctx, n, a, x, y);
+}
+
+Status Xpay(Context& ctx, size_t n, float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y) {
+  return kXpay4(ctx, n, a, x, y);
+}
+
+Status SubFrom(Context& ctx, size_t n, const Buffer<vd_float4>& b, Buffer<vd_float4>& y) {
+  return kSubFrom4(ctx, n, b, y);
+}
+
+Status DotPartials(Context& ctx, size_t groups, const Buffer<vd_float4>& a, const Buffer<vd_float4>& b, int n,
+                   int chunk, Buffer<float>& partials) {
+  return kDot4Partial(ctx, groups, a, b, n, chunk, partials);
+}
+
+Status DenseEnergyPartials(Context& ctx, size_t groups, const Buffer<VdCorrespondence>& cons, int n, int chunk,
+                           const Buffer<int32_t>& compact, VdVolume vol, const Buffer<vd_float4>& x,
+                           Buffer<float>& partials) {
+  return kEnergyDensePartial(ctx, groups, cons, n, chunk, compact, vol, x, partials);
+}
+
+Status ArapEnergyPartials(Context& ctx, size_t groups, const Buffer<int32_t>& list, const Buffer<int32_t>& neighbours,
+                          VdVolume vol, const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot, int n, int chunk,
+                          Buffer<float>& partials) {
+  return kEnergyArapPartial(ctx, groups, list, neighbours, vol, x, rot, n, chunk, partials);
+}
+
+}  // namespace vd::ocl
