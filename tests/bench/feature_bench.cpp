@@ -18,6 +18,7 @@
 #include "cpu_ref/features_ref.h"
 #include "ocl/device_ops.h"
 #include "vd/capture/synthetic.h"
+#include "sphere_volume.h"
 
 namespace vd {
 namespace {
@@ -105,12 +106,7 @@ int main(int argc, char** argv) {
   // Matching against synthetic histories.
   DeviceOps ops(ctx->get());
   Check(ops.Init());
-  VdVolume vol{};
-  vol.dim_x = vol.dim_y = vol.dim_z = 64;
-  vol.voxel_size = 0.004f;
-  vol.origin = VD_F4(-0.128f, -0.128f, 0.7f, 1.f);
-  vol.truncation = 0.016f;
-  vol.max_weight = 64.f;
+  const VdVolume vol = test::TestVolume(64, 64, 64, 0.004f, VD_F4(-0.128f, -0.128f, 0.7f, 1.f));
   DeviceVolume dv;
   Check(ops.AllocVolume(vol, true, &dv));
   FeatureMatcher matcher(ctx->get());

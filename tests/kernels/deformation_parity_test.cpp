@@ -7,21 +7,12 @@
 #include "ocl/device_ops.h"
 #include "shared/deformation.h"
 #include "test_scenes.h"
+#include "sphere_volume.h"
 
 namespace vd {
 namespace {
 
-VdVolume SmallVolume() {
-  VdVolume vol{};
-  vol.dim_x = 20;
-  vol.dim_y = 16;
-  vol.dim_z = 12;
-  vol.voxel_size = 0.01f;
-  vol.origin = VD_F4(-0.1f, -0.08f, 0.5f, 1.f);
-  vol.truncation = 0.04f;
-  vol.max_weight = 64.f;
-  return vol;
-}
+VdVolume SmallVolume() { return test::TestVolume(20, 16, 12, 0.01f, VD_F4(-0.1f, -0.08f, 0.5f, 1.f)); }
 
 TEST(DeformationParityTest, ResetGivesRestPositionsAndIdentityRotations) {
   VD_REQUIRE_OCL(ctx);

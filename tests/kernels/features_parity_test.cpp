@@ -10,6 +10,7 @@
 #include "ocl/features_ocl.h"
 #include "shared/features.h"
 #include "test_scenes.h"
+#include "sphere_volume.h"
 
 namespace vd {
 namespace {
@@ -137,17 +138,7 @@ TEST(FeaturePruneTest, EachRuleOnConstructedCases) {
   EXPECT_EQ(vd_match_prune(nan, near, obs, 5.f, 0.f, p), VD_PRUNE_DESCRIPTOR);
 }
 
-VdVolume LiftVolume() {
-  VdVolume vol{};
-  vol.dim_x = 24;
-  vol.dim_y = 20;
-  vol.dim_z = 16;
-  vol.voxel_size = 0.01f;
-  vol.origin = VD_F4(-0.12f, -0.1f, 0.4f, 1.f);
-  vol.truncation = 0.04f;
-  vol.max_weight = 64.f;
-  return vol;
-}
+VdVolume LiftVolume() { return test::TestVolume(24, 20, 16, 0.01f, VD_F4(-0.12f, -0.1f, 0.4f, 1.f)); }
 
 // A smooth non-affine field: a bend about the y axis growing with x, plus a shift.
 std::vector<vd_float4> BentField(const VdVolume& vol) {

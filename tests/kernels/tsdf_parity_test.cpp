@@ -7,19 +7,12 @@
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/device_ops.h"
 #include "test_scenes.h"
+#include "sphere_volume.h"
 
 namespace vd {
 namespace {
 
-VdVolume SphereVolume() {
-  VdVolume vol{};
-  vol.dim_x = vol.dim_y = vol.dim_z = 64;
-  vol.voxel_size = 0.01f;
-  vol.origin = VD_F4(-0.32f, -0.32f, 0.68f, 1.f);
-  vol.truncation = 0.04f;
-  vol.max_weight = 64.f;
-  return vol;
-}
+VdVolume SphereVolume() { return test::TestVolume(64, 64, 64, 0.01f, VD_F4(-0.32f, -0.32f, 0.68f, 1.f)); }
 
 TEST(TsdfParityTest, IntegrationMatchesCpuAndFindsTheSphere) {
   VD_REQUIRE_OCL(ctx);
