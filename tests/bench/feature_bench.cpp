@@ -109,7 +109,7 @@ int main(int argc, char** argv) {
   const VdVolume vol = test::TestVolume(64, 64, 64, 0.004f, VD_F4(-0.128f, -0.128f, 0.7f, 1.f));
   DeviceVolume dv;
   Check(ops.AllocVolume(vol, true, &dv));
-  FeatureMatcher matcher(ctx->get());
+  FeatureMatcher matcher(ctx->get(), params);
   std::mt19937 rng(3);
   const FrameFeatures cur = RandomFrame(-1, &rng, vol);
   FeatureHistory history;
@@ -141,7 +141,7 @@ int main(int argc, char** argv) {
       MatchStats stats;
       const double dev = MedianMs(reps, [&] {
         out.clear();
-        Check(matcher.Match(cur, history, cand, dv, identity, cam, params, &out, &stats));
+        Check(matcher.Match(cur, history, cand, dv, identity, cam, &out, &stats));
       });
       // The CPU reference of the same three kernels on the same candidates.
       std::vector<uint8_t> cd;

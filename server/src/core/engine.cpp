@@ -170,7 +170,7 @@ Engine::Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx)
       ctx_(std::move(ctx)),
       ops_(ctx_.get()),
       solver_(std::make_unique<HierarchicalSolver>(&ops_, params_.solver)),
-      matcher_(ctx_.get()) {
+      matcher_(ctx_.get(), params_.features) {
   extractor_.Configure(params_.features, params_.min_depth, params_.max_depth);
 }
 
@@ -553,7 +553,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       t0 = Clock::now();
       MatchStats stats;
       VD_RETURN_IF_ERROR(matcher_.Match(features, history_, history_.Candidates(params_.features), volume_,
-                                        ToVdPose(pose_), cam_, params_.features, &matches_, &stats));
+                                        ToVdPose(pose_), cam_, &matches_, &stats));
       result.feature_match_ms = MsSince(t0);
       result.times[Stage::kFeatures] += result.feature_match_ms;
     }
@@ -599,7 +599,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     // changes the surface the raster showed.
     t0 = Clock::now();
     VD_RETURN_IF_ERROR(matcher_.Lift(&features, live_, mesh_, volume_, ToVdPose(pose_), ToVdPose(pose_.inverse()),
-                                     !nonrigid, params_.features));
+                                     !nonrigid));
     for (const vd_float4& g : features.canonical) result.features_lifted += g.w > 0.f;
     history_.Add(std::move(features), params_.features.keyframe_interval);
     history_.Compact(params_.features);

@@ -355,7 +355,8 @@ size_t FeatureHistory::num_features() const {
 
 Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& history, const std::vector<int>& candidates,
                              const DeviceVolume& volume, const VdPose& cam_to_world, VdCamera cam,
-                             const FeatureParams& params, std::vector<SparseMatch>* out, MatchStats* stats) {
+                             std::vector<SparseMatch>* out, MatchStats* stats) {
+  const FeatureParams& params = params_;
   *stats = MatchStats();
   const int n_cur = int(cur.size_keypoints());
   if (n_cur == 0 || candidates.empty()) return Status::Ok();
@@ -457,7 +458,8 @@ Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& his
 
 Status FeatureMatcher::Lift(FrameFeatures* f, const DeviceRaster& raster, const DeviceMesh& mesh,
                             const DeviceVolume& volume, const VdPose& cam_to_world, const VdPose& world_to_cam,
-                            bool no_model, const FeatureParams& params) {
+                            bool no_model) {
+  const FeatureParams& params = params_;
   const size_t n = f->size_keypoints();
   f->canonical.assign(n, VD_F4(0.f, 0.f, 0.f, 0.f));
   if (n == 0) return Status::Ok();

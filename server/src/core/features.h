@@ -164,21 +164,23 @@ struct MatchStats {
 // Device side: matching against the history and lifting into the canonical pose.
 class FeatureMatcher {
  public:
-  explicit FeatureMatcher(ocl::Context* ctx) : ctx_(ctx) {}
+  // params are validated by the caller (EngineParams::Validate at start-up).
+  FeatureMatcher(ocl::Context* ctx, const FeatureParams& params) : ctx_(ctx), params_(params) {}
 
   // Matches `cur` (camera points of this frame, `cam_to_world` its pose) against the history
   // frames `candidates`; earlier features are moved by the current field for the screen and 3D
   // pruning. Appends the survivors to `out`.
   Status Match(const FrameFeatures& cur, const FeatureHistory& history, const std::vector<int>& candidates,
-               const DeviceVolume& volume, const VdPose& cam_to_world, VdCamera cam, const FeatureParams& params,
-               std::vector<SparseMatch>* out, MatchStats* stats);
+               const DeviceVolume& volume, const VdPose& cam_to_world, VdCamera cam, std::vector<SparseMatch>* out,
+               MatchStats* stats);
   // Lifts `f`'s keypoints into the canonical pose (fills f->canonical). `raster` is the live mesh
   // rendered at this frame's pose; with `no_model` the grid has no surface yet.
   Status Lift(FrameFeatures* f, const DeviceRaster& raster, const DeviceMesh& mesh, const DeviceVolume& volume,
-              const VdPose& cam_to_world, const VdPose& world_to_cam, bool no_model, const FeatureParams& params);
+              const VdPose& cam_to_world, const VdPose& world_to_cam, bool no_model);
 
  private:
   ocl::Context* ctx_;
+  const FeatureParams params_;
   ocl::Buffer<uint8_t> cur_desc_, cand_desc_;
   ocl::Buffer<float> dist_;
   ocl::Buffer<int32_t> frames_;
