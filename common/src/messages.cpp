@@ -153,7 +153,8 @@ Status ValidateLcmWire<vdeform::server_status_t>(const void* data, size_t size) 
   VD_RETURN_IF_ERROR(w.Strings(n, "stage_name"));
   VD_RETURN_IF_ERROR(w.Array(n, 4, "stage_ms_last"));
   VD_RETURN_IF_ERROR(w.Array(n, 4, "stage_ms_mean"));
-  VD_RETURN_IF_ERROR(w.Skip(4 + 8 + 4 + 4 + 4 + 4 + 8, "fps..resident_memory_bytes"));
+  VD_RETURN_IF_ERROR(w.Skip(4 + 3 * 4, "fps, latency_ms_last/p50/p95"));
+  VD_RETURN_IF_ERROR(w.Skip(8 + 4 + 4 + 4 + 4 + 8, "active_voxels..resident_memory_bytes"));
   VD_RETURN_IF_ERROR(w.Skip(8 + 8, "model_frames/checkpoint_utime"));
   return w.String("checkpoint_message");
 }

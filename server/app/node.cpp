@@ -243,6 +243,11 @@ class Node::Impl {
                 (long long)g.duplicates, (long long)g.reordered, (long long)g.lost, (long long)g.foreign,
                 (long long)g.control_refused);
     if (stats_.count()) std::printf("stages (mean ms): %s\n", stats_.Summary().c_str());
+    if (!latencies_ms_.empty()) {
+      const std::vector<double> window(latencies_ms_.begin(), latencies_ms_.end());
+      std::printf("latency capture -> mesh (last %zu frames): p50 %.0f ms, p95 %.0f ms\n", window.size(),
+                  Percentile(window, 0.5), Percentile(window, 0.95));
+    }
   }
 
   void PublishStatus() {
