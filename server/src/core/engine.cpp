@@ -35,7 +35,6 @@ VdCamera ScaledCamera(const VdCamera& c, int level) {
   return ToVdCamera(k.Scaled(level));
 }
 
-Status Bad(const char* field, double value, const char* bound) { return ParamOutOfBounds("EngineParams", field, value, bound); }
 
 int64_t ProcStatusKb(const char* key) {
   std::ifstream in("/proc/self/status");
@@ -121,32 +120,32 @@ void EngineParams::Bind(FlagParser* f) {
 }
 
 Status EngineParams::Validate() const {
-  if (!(voxel_size >= 0.0005f && voxel_size <= 0.1f)) return Bad("voxel_size", voxel_size, "0.0005 <= voxel_size <= 0.1 m");
+  if (!(voxel_size >= 0.0005f && voxel_size <= 0.1f)) return ParamOutOfBounds("EngineParams", "voxel_size", voxel_size, "0.0005 <= voxel_size <= 0.1 m");
   if (!(truncation_voxels >= 1.f && truncation_voxels <= 50.f))
-    return Bad("truncation_voxels", truncation_voxels, "1 <= truncation_voxels <= 50");
-  if (!(max_weight >= 1.f && max_weight <= 1e4f)) return Bad("max_weight", max_weight, "1 <= max_weight <= 1e4");
-  if (!(min_depth >= 0.f && min_depth < max_depth)) return Bad("min_depth", min_depth, "0 <= min_depth < max_depth");
-  if (!(max_depth <= 20.f)) return Bad("max_depth", max_depth, "max_depth <= 20 m");
-  if (!(max_grid_mb >= 1.0 && max_grid_mb <= 64000.0)) return Bad("max_grid_mb", max_grid_mb, "1 <= max_grid_mb <= 64000");
-  if (!(volume_margin >= 0.f && volume_margin <= 2.f)) return Bad("volume_margin", volume_margin, "0 <= volume_margin <= 2 m");
-  if (!(bilateral_radius >= 1 && bilateral_radius <= 7)) return Bad("bilateral_radius", bilateral_radius, "1 <= r <= 7");
-  if (!(bilateral_sigma_space_px > 0.f)) return Bad("bilateral_sigma_space_px", bilateral_sigma_space_px, "> 0");
-  if (!(bilateral_sigma_depth_m > 0.f)) return Bad("bilateral_sigma_depth_m", bilateral_sigma_depth_m, "> 0");
+    return ParamOutOfBounds("EngineParams", "truncation_voxels", truncation_voxels, "1 <= truncation_voxels <= 50");
+  if (!(max_weight >= 1.f && max_weight <= 1e4f)) return ParamOutOfBounds("EngineParams", "max_weight", max_weight, "1 <= max_weight <= 1e4");
+  if (!(min_depth >= 0.f && min_depth < max_depth)) return ParamOutOfBounds("EngineParams", "min_depth", min_depth, "0 <= min_depth < max_depth");
+  if (!(max_depth <= 20.f)) return ParamOutOfBounds("EngineParams", "max_depth", max_depth, "max_depth <= 20 m");
+  if (!(max_grid_mb >= 1.0 && max_grid_mb <= 64000.0)) return ParamOutOfBounds("EngineParams", "max_grid_mb", max_grid_mb, "1 <= max_grid_mb <= 64000");
+  if (!(volume_margin >= 0.f && volume_margin <= 2.f)) return ParamOutOfBounds("EngineParams", "volume_margin", volume_margin, "0 <= volume_margin <= 2 m");
+  if (!(bilateral_radius >= 1 && bilateral_radius <= 7)) return ParamOutOfBounds("EngineParams", "bilateral_radius", bilateral_radius, "1 <= r <= 7");
+  if (!(bilateral_sigma_space_px > 0.f)) return ParamOutOfBounds("EngineParams", "bilateral_sigma_space_px", bilateral_sigma_space_px, "> 0");
+  if (!(bilateral_sigma_depth_m > 0.f)) return ParamOutOfBounds("EngineParams", "bilateral_sigma_depth_m", bilateral_sigma_depth_m, "> 0");
   for (int it : icp_iterations)
-    if (it < 0 || it > 100) return Bad("icp_iterations", it, "0 <= iterations <= 100");
-  if (!(icp_degeneracy >= 0.f && icp_degeneracy < 0.1f)) return Bad("icp_degeneracy", icp_degeneracy, "0 <= tau < 0.1");
-  if (!(icp_max_distance > 0.f)) return Bad("icp_max_distance", icp_max_distance, "> 0");
+    if (it < 0 || it > 100) return ParamOutOfBounds("EngineParams", "icp_iterations", it, "0 <= iterations <= 100");
+  if (!(icp_degeneracy >= 0.f && icp_degeneracy < 0.1f)) return ParamOutOfBounds("EngineParams", "icp_degeneracy", icp_degeneracy, "0 <= tau < 0.1");
+  if (!(icp_max_distance > 0.f)) return ParamOutOfBounds("EngineParams", "icp_max_distance", icp_max_distance, "> 0");
   if (!(icp_max_normal_angle_deg > 0.f && icp_max_normal_angle_deg <= 90.f))
-    return Bad("icp_max_normal_angle_deg", icp_max_normal_angle_deg, "0 < angle <= 90");
+    return ParamOutOfBounds("EngineParams", "icp_max_normal_angle_deg", icp_max_normal_angle_deg, "0 < angle <= 90");
   if (!(min_inlier_fraction >= 0.f && min_inlier_fraction < 1.f))
-    return Bad("min_inlier_fraction", min_inlier_fraction, "0 <= f < 1");
-  if (!(max_frame_translation > 0.f)) return Bad("max_frame_translation", max_frame_translation, "> 0");
-  if (!(max_frame_rotation_deg > 0.f)) return Bad("max_frame_rotation_deg", max_frame_rotation_deg, "> 0");
+    return ParamOutOfBounds("EngineParams", "min_inlier_fraction", min_inlier_fraction, "0 <= f < 1");
+  if (!(max_frame_translation > 0.f)) return ParamOutOfBounds("EngineParams", "max_frame_translation", max_frame_translation, "> 0");
+  if (!(max_frame_rotation_deg > 0.f)) return ParamOutOfBounds("EngineParams", "max_frame_rotation_deg", max_frame_rotation_deg, "> 0");
   if (!(nonrigid_outer_iterations >= 0 && nonrigid_outer_iterations <= 20))
-    return Bad("nonrigid_outer_iterations", nonrigid_outer_iterations, "0 <= n <= 20");
+    return ParamOutOfBounds("EngineParams", "nonrigid_outer_iterations", nonrigid_outer_iterations, "0 <= n <= 20");
   if (!(corr_eps_d > 0.f && corr_eps_n > 0.f && corr_eps_n <= 2.f && corr_eps_v > 0.f && corr_eps_v <= 2.f))
-    return Bad("corr_eps_*", corr_eps_d, "eps_d > 0, 0 < eps_n, eps_v <= 2");
-  if (!(k_min >= 0.f && k_min <= 100.f)) return Bad("k_min", k_min, "0 <= k_min <= 100");
+    return ParamOutOfBounds("EngineParams", "corr_eps_*", corr_eps_d, "eps_d > 0, 0 < eps_n, eps_v <= 2");
+  if (!(k_min >= 0.f && k_min <= 100.f)) return ParamOutOfBounds("EngineParams", "k_min", k_min, "0 <= k_min <= 100");
   VD_RETURN_IF_ERROR(solver.Validate());
   VD_RETURN_IF_ERROR(features.Validate());
   return Status::Ok();

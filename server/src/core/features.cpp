@@ -15,10 +15,6 @@
 namespace vd {
 namespace {
 
-Status BadFeature(const char* field, double value, const char* bound) {
-  return ParamOutOfBounds("FeatureParams", field, value, bound);
-}
-
 // SIFT octave of a keypoint as OpenCV packs it (low byte, signed; -1 = the upsampled octave).
 int KeypointOctave(const cv::KeyPoint& kp) {
   int o = kp.octave & 255;
@@ -44,32 +40,32 @@ VdPose Inverse(const VdPose& T) {
 }  // namespace
 
 Status FeatureParams::Validate() const {
-  if (!(w_sparse >= 0.f && w_sparse <= 1e4f)) return BadFeature("w_sparse", w_sparse, "0 <= w_s <= 1e4");
-  if (!(max_keypoints >= 1 && max_keypoints <= 4096)) return BadFeature("max_keypoints", max_keypoints, "1..4096");
-  if (!(octaves >= 1 && octaves <= 8)) return BadFeature("octaves", octaves, "1..8");
+  if (!(w_sparse >= 0.f && w_sparse <= 1e4f)) return ParamOutOfBounds("FeatureParams", "w_sparse", w_sparse, "0 <= w_s <= 1e4");
+  if (!(max_keypoints >= 1 && max_keypoints <= 4096)) return ParamOutOfBounds("FeatureParams", "max_keypoints", max_keypoints, "1..4096");
+  if (!(octaves >= 1 && octaves <= 8)) return ParamOutOfBounds("FeatureParams", "octaves", octaves, "1..8");
   if (!(detect_scale == 1.f || detect_scale == 0.5f || detect_scale == 0.25f))
-    return BadFeature("detect_scale", detect_scale, "one of 1, 0.5, 0.25");
-  if (!(octave_layers >= 1 && octave_layers <= 8)) return BadFeature("octave_layers", octave_layers, "1..8");
+    return ParamOutOfBounds("FeatureParams", "detect_scale", detect_scale, "one of 1, 0.5, 0.25");
+  if (!(octave_layers >= 1 && octave_layers <= 8)) return ParamOutOfBounds("FeatureParams", "octave_layers", octave_layers, "1..8");
   if (!(contrast_threshold > 0.f && contrast_threshold < 1.f))
-    return BadFeature("contrast_threshold", contrast_threshold, "0 < c < 1");
-  if (!(max_orientations >= 1 && max_orientations <= 4)) return BadFeature("max_orientations", max_orientations, "1..4");
-  if (!(max_depth_spread > 0.f)) return BadFeature("max_depth_spread", max_depth_spread, "> 0");
-  if (!(max_pair_matches >= 1 && max_pair_matches <= 4096)) return BadFeature("max_pair_matches", max_pair_matches, "1..4096");
+    return ParamOutOfBounds("FeatureParams", "contrast_threshold", contrast_threshold, "0 < c < 1");
+  if (!(max_orientations >= 1 && max_orientations <= 4)) return ParamOutOfBounds("FeatureParams", "max_orientations", max_orientations, "1..4");
+  if (!(max_depth_spread > 0.f)) return ParamOutOfBounds("FeatureParams", "max_depth_spread", max_depth_spread, "> 0");
+  if (!(max_pair_matches >= 1 && max_pair_matches <= 4096)) return ParamOutOfBounds("FeatureParams", "max_pair_matches", max_pair_matches, "1..4096");
   if (!(keep_per_pair >= 1 && keep_per_pair <= max_pair_matches))
-    return BadFeature("keep_per_pair", keep_per_pair, "1 <= keep_per_pair <= max_pair_matches");
-  if (!(prune.max_descriptor_distance > 0.f)) return BadFeature("prune.max_descriptor_distance", prune.max_descriptor_distance, "> 0");
-  if (!(prune.max_ratio > 0.f && prune.max_ratio <= 1.f)) return BadFeature("prune.max_ratio", prune.max_ratio, "0 < r <= 1");
-  if (!(prune.max_screen_distance > 0.f)) return BadFeature("prune.max_screen_distance", prune.max_screen_distance, "> 0");
-  if (!(prune.max_world_distance > 0.f)) return BadFeature("prune.max_world_distance", prune.max_world_distance, "> 0");
-  if (!(recent_frames >= 0 && recent_frames <= 64)) return BadFeature("recent_frames", recent_frames, "0..64");
-  if (!(keyframe_interval >= 1)) return BadFeature("keyframe_interval", keyframe_interval, ">= 1");
-  if (!(max_keyframes >= 0 && max_keyframes <= 1024)) return BadFeature("max_keyframes", max_keyframes, "0..1024");
+    return ParamOutOfBounds("FeatureParams", "keep_per_pair", keep_per_pair, "1 <= keep_per_pair <= max_pair_matches");
+  if (!(prune.max_descriptor_distance > 0.f)) return ParamOutOfBounds("FeatureParams", "prune.max_descriptor_distance", prune.max_descriptor_distance, "> 0");
+  if (!(prune.max_ratio > 0.f && prune.max_ratio <= 1.f)) return ParamOutOfBounds("FeatureParams", "prune.max_ratio", prune.max_ratio, "0 < r <= 1");
+  if (!(prune.max_screen_distance > 0.f)) return ParamOutOfBounds("FeatureParams", "prune.max_screen_distance", prune.max_screen_distance, "> 0");
+  if (!(prune.max_world_distance > 0.f)) return ParamOutOfBounds("FeatureParams", "prune.max_world_distance", prune.max_world_distance, "> 0");
+  if (!(recent_frames >= 0 && recent_frames <= 64)) return ParamOutOfBounds("FeatureParams", "recent_frames", recent_frames, "0..64");
+  if (!(keyframe_interval >= 1)) return ParamOutOfBounds("FeatureParams", "keyframe_interval", keyframe_interval, ">= 1");
+  if (!(max_keyframes >= 0 && max_keyframes <= 1024)) return ParamOutOfBounds("FeatureParams", "max_keyframes", max_keyframes, "0..1024");
   if (!(max_stored_keyframes >= std::max(2, max_keyframes) && max_stored_keyframes <= 100000))
-    return BadFeature("max_stored_keyframes", max_stored_keyframes, "max(2, max_keyframes)..100000");
-  if (!(pose_huber > 0.f)) return BadFeature("pose_huber", pose_huber, "> 0");
-  if (!(lift_max_depth_gap > 0.f)) return BadFeature("lift_max_depth_gap", lift_max_depth_gap, "> 0");
-  if (!(lift_tolerance > 0.f)) return BadFeature("lift_tolerance", lift_tolerance, "> 0");
-  if (!(lift_iterations >= 1 && lift_iterations <= 50)) return BadFeature("lift_iterations", lift_iterations, "1..50");
+    return ParamOutOfBounds("FeatureParams", "max_stored_keyframes", max_stored_keyframes, "max(2, max_keyframes)..100000");
+  if (!(pose_huber > 0.f)) return ParamOutOfBounds("FeatureParams", "pose_huber", pose_huber, "> 0");
+  if (!(lift_max_depth_gap > 0.f)) return ParamOutOfBounds("FeatureParams", "lift_max_depth_gap", lift_max_depth_gap, "> 0");
+  if (!(lift_tolerance > 0.f)) return ParamOutOfBounds("FeatureParams", "lift_tolerance", lift_tolerance, "> 0");
+  if (!(lift_iterations >= 1 && lift_iterations <= 50)) return ParamOutOfBounds("FeatureParams", "lift_iterations", lift_iterations, "1..50");
   return Status::Ok();
 }
 

@@ -31,17 +31,16 @@ void SolverParams::Bind(FlagParser* f) {
 }
 
 Status SolverParams::Validate() const {
-  auto bad = [](const char* f, double v, const char* b) { return ParamOutOfBounds("SolverParams", f, v, b); };
-  if (!(w_dense > 0.f && w_dense < 1e6f)) return bad("w_dense", w_dense, "0 < w_dense < 1e6");
-  if (!(w_reg > 0.f && w_reg < 1e6f)) return bad("w_reg", w_reg, "0 < w_reg < 1e6");
-  if (!(damping > 0.f && damping < 1.f)) return bad("damping", damping, "0 < damping < 1");
+  if (!(w_dense > 0.f && w_dense < 1e6f)) return ParamOutOfBounds("SolverParams", "w_dense", w_dense, "0 < w_dense < 1e6");
+  if (!(w_reg > 0.f && w_reg < 1e6f)) return ParamOutOfBounds("SolverParams", "w_reg", w_reg, "0 < w_reg < 1e6");
+  if (!(damping > 0.f && damping < 1.f)) return ParamOutOfBounds("SolverParams", "damping", damping, "0 < damping < 1");
   if (!(flip_flop_iterations >= 1 && flip_flop_iterations <= 100))
-    return bad("flip_flop_iterations", flip_flop_iterations, "1 <= n <= 100");
-  if (!(pcg_iterations >= 1 && pcg_iterations <= 1000)) return bad("pcg_iterations", pcg_iterations, "1 <= n <= 1000");
-  if (!(pcg_tolerance > 0.f && pcg_tolerance < 1.f)) return bad("pcg_tolerance", pcg_tolerance, "0 < tol < 1");
-  if (!(levels >= 1 && levels <= 5)) return bad("levels", levels, "1 <= levels <= 5");
+    return ParamOutOfBounds("SolverParams", "flip_flop_iterations", flip_flop_iterations, "1 <= n <= 100");
+  if (!(pcg_iterations >= 1 && pcg_iterations <= 1000)) return ParamOutOfBounds("SolverParams", "pcg_iterations", pcg_iterations, "1 <= n <= 1000");
+  if (!(pcg_tolerance > 0.f && pcg_tolerance < 1.f)) return ParamOutOfBounds("SolverParams", "pcg_tolerance", pcg_tolerance, "0 < tol < 1");
+  if (!(levels >= 1 && levels <= 5)) return ParamOutOfBounds("SolverParams", "levels", levels, "1 <= levels <= 5");
   if (!(coarse_flip_flop_iterations >= 0 && coarse_flip_flop_iterations <= 100))
-    return bad("coarse_flip_flop_iterations", coarse_flip_flop_iterations, "0 <= n <= 100");
+    return ParamOutOfBounds("SolverParams", "coarse_flip_flop_iterations", coarse_flip_flop_iterations, "0 <= n <= 100");
   return Status::Ok();
 }
 
