@@ -243,11 +243,9 @@ class Node::Impl {
                 (long long)g.duplicates, (long long)g.reordered, (long long)g.lost, (long long)g.foreign,
                 (long long)g.control_refused);
     if (stats_.count()) std::printf("stages (mean ms): %s\n", stats_.Summary().c_str());
-    if (!latencies_ms_.empty()) {
-      const std::vector<double> window(latencies_ms_.begin(), latencies_ms_.end());
-      std::printf("latency capture -> mesh (last %zu frames): p50 %.0f ms, p95 %.0f ms\n", window.size(),
-                  Percentile(window, 0.5), Percentile(window, 0.95));
-    }
+    if (!latencies_ms_.empty())
+      std::printf("latency capture -> mesh (last %zu frames): p50 %.0f ms, p95 %.0f ms\n", latencies_ms_.size(),
+                  Percentile(latencies_ms_, 0.5), Percentile(latencies_ms_, 0.95));
   }
 
   void PublishStatus() {
@@ -290,10 +288,9 @@ class Node::Impl {
         if (span > 0) st.fps = float((process_times_.size() - 1) / span);
       }
       if (!latencies_ms_.empty()) {
-        const std::vector<double> window(latencies_ms_.begin(), latencies_ms_.end());
-        st.latency_ms_last = float(window.back());
-        st.latency_ms_p50 = float(Percentile(window, 0.5));
-        st.latency_ms_p95 = float(Percentile(window, 0.95));
+        st.latency_ms_last = float(latencies_ms_.back());
+        st.latency_ms_p50 = float(Percentile(latencies_ms_, 0.5));
+        st.latency_ms_p95 = float(Percentile(latencies_ms_, 0.95));
       }
       st.active_voxels = active_voxels_;
       st.dense_correspondences = dense_;
@@ -364,7 +361,7 @@ class Node::Impl {
     if (capture_utime <= 0) return;
     std::lock_guard<std::mutex> lock(mutex_);
     latencies_ms_.push_back(double(NowUs() - capture_utime) / 1000.0);
-    while (latencies_ms_.size() > kLatencyWindow) latencies_ms_.pop_front();
+    if (latencies_ms_.size() > kLatencyWindow) latencies_ms_.erase(latencies_ms_.begin());
   }
 
   // The live mesh always; the canonical one when it changed, at most once a second, or on request.
@@ -467,7 +464,7 @@ class Node::Impl {
   // Capture-to-publication latency of the last kLatencyWindow frames, ms (the status's p50/p95:
   // what a live user waits, including the time a frame queued behind the one being solved).
   static constexpr size_t kLatencyWindow = 100;
-  std::deque<double> latencies_ms_;
+  std::vector<double> latencies_ms_;
   // The last frame's solve, for a monitor: depth correspondences and SIFT matches (none of either
   // means the solve ran on regularity alone), the energy before and after (a rise means it
   // diverged), the grid points near the surface (what the solve and memory scale with).
