@@ -13,6 +13,7 @@
 #include "node.h"
 #include "scene_eval.h"
 #include "shared/deformation.h"
+#include "../support/temp_dir.h"
 
 namespace vd {
 namespace {
@@ -148,7 +149,7 @@ TEST(CheckpointTest, TornAndCorruptBytesAreRefusedNeverPartlyLoaded) {
 }
 
 TEST(CheckpointTest, FilesAreReplacedAtomicallyAndACorruptOneFallsBack) {
-  const std::string dir = testing::TempDir() + "/vd_ckpt_files";
+  const std::string dir = test::TestTempDir("vd_ckpt_files");
   fs::remove_all(dir);
   const EngineState a = SmallState(4), b = SmallState(5);
   ASSERT_TRUE(WriteCheckpoint(dir, a).ok());
@@ -257,7 +258,7 @@ class NodeCheckpointTest : public ::testing::Test {
   void SetUp() override {
     if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
     options_.engine.voxel_size = 0.008f;
-    options_.checkpoint_dir = testing::TempDir() + "/vd_node_ckpt";
+    options_.checkpoint_dir = test::TestTempDir("vd_node_ckpt");
     options_.checkpoint_interval = 0;
     fs::remove_all(options_.checkpoint_dir);
     SyntheticOptions so;
@@ -265,6 +266,10 @@ class NodeCheckpointTest : public ::testing::Test {
     auto scene = MakeSyntheticScene("tube", so);
     ASSERT_TRUE(scene.ok());
     scene_ = std::move(scene).value();
+  }
+  void TearDown() override {
+    std::error_code ec;
+    fs::remove_all(options_.checkpoint_dir, ec);
   }
   std::unique_ptr<Node> MakeNode(lcm::LCM* lcm) {
     auto engine = Engine::Create(options_.engine, "");

@@ -18,6 +18,7 @@
 #include "ocl/ocl.h"
 #include "snapshot.h"
 #include "vd/capture/synthetic.h"
+#include "../support/temp_dir.h"
 
 namespace vd {
 namespace {
@@ -42,7 +43,7 @@ class NodeTest : public ::testing::Test {
     if (!devices.ok() || devices->empty()) GTEST_SKIP() << "no OpenCL device";
     ASSERT_TRUE(lcm_.good());
     options_.engine.voxel_size = 0.008f;
-    options_.snapshot_dir = testing::TempDir() + "/vd_node_snapshots";
+    options_.snapshot_dir = test::TestTempDir("vd_node_snapshots");
     std::filesystem::remove_all(options_.snapshot_dir);
     ASSERT_TRUE(options_.Validate().ok());
     auto engine = Engine::Create(options_.engine, "");
@@ -58,6 +59,10 @@ class NodeTest : public ::testing::Test {
     ASSERT_TRUE(scene.ok());
     frame_ = (*scene)->Render(0);
     frame_.source_id = "test";
+  }
+  void TearDown() override {
+    std::error_code ec;
+    std::filesystem::remove_all(options_.snapshot_dir, ec);
   }
   void Pump() {
     while (lcm_.handleTimeout(0) > 0) {

@@ -8,6 +8,7 @@
 
 #include "offline.h"
 #include "ocl/ocl.h"
+#include "../support/temp_dir.h"
 
 namespace vd {
 namespace {
@@ -35,7 +36,7 @@ TEST(OfflineTest, SaveDirNamesFilesBySourceFrameIndex) {
   options.stride = 2;
   options.count = 3;
   options.quiet = true;
-  options.save_dir = testing::TempDir() + "/vd_offline_save";
+  options.save_dir = test::TestTempDir("vd_offline_save");
   fs::remove_all(options.save_dir);
   ASSERT_EQ(RunOffline(options), 0);
   std::set<std::string> files;
