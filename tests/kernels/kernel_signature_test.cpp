@@ -26,7 +26,7 @@ using ScanSums = decltype(ocl::kScanSums);
 static_assert(kLaunches<DepthConvert, const Buffer<uint16_t>&, Buffer<float>&, float, float, float>);
 static_assert(kLaunches<DepthConvert, Buffer<uint16_t>&, Buffer<float>&, const float&, float, float>);
 static_assert(kLaunches<Procrustes, const Buffer<int32_t>&, const Buffer<vd_float4>&, Buffer<vd_float4>&,
-                        Buffer<vd_float4>&>);
+                        Buffer<vd_float4>&, int32_t>);
 static_assert(kLaunches<ScanSums, const Buffer<uint32_t>&, uint32_t, uint32_t, Buffer<uint32_t>&>);
 // Swapped buffers of different element types.
 static_assert(!kLaunches<DepthConvert, Buffer<float>&, Buffer<uint16_t>&, float, float, float>);
@@ -34,10 +34,10 @@ static_assert(!kLaunches<DepthConvert, Buffer<float>&, Buffer<uint16_t>&, float,
 static_assert(!kLaunches<DepthConvert, const Buffer<uint16_t>&, const Buffer<float>&, float, float, float>);
 static_assert(!kLaunches<DepthConvert, const Buffer<uint16_t>&, Buffer<float>&&, float, float, float>);
 static_assert(!kLaunches<Procrustes, const Buffer<int32_t>&, const Buffer<vd_float4>&, Buffer<vd_float4>&,
-                         const Buffer<vd_float4>&>);
+                         const Buffer<vd_float4>&, int32_t>);
 // A written buffer swapped with a read one of the same type.
 static_assert(!kLaunches<Procrustes, const Buffer<int32_t>&, Buffer<vd_float4>&, const Buffer<vd_float4>&,
-                         const Buffer<vd_float4>&>);
+                         const Buffer<vd_float4>&, int32_t>);
 // Too few and too many arguments.
 static_assert(!kLaunches<DepthConvert, const Buffer<uint16_t>&, Buffer<float>&, float, float>);
 static_assert(!kLaunches<DepthConvert, const Buffer<uint16_t>&, Buffer<float>&, float, float, float, float>);
@@ -54,25 +54,25 @@ TEST(KernelSignatureTest, AHandleThatDisagreesWithItsKernelFailsAtLaunch) {
   auto neighbours = test::ToDevice(ctx, std::vector<int32_t>(6, -1));
   auto t = test::ToDevice(ctx, std::vector<vd_float4>(1));
   auto rot = test::ToDevice(ctx, std::vector<vd_float4>(1));
-  ASSERT_TRUE(ocl::kProcrustes(*ctx, 1, neighbours, t, t, rot).ok());
+  ASSERT_TRUE(ocl::kProcrustes(*ctx, 1, neighbours, t, t, rot, 0).ok());
 
-  // vd_procrustes has four arguments before vd_items; this handle declares three.
+  // vd_procrustes has five arguments before vd_items; this handle declares three.
   constexpr ocl::Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t, Buffer<vd_float4>& rot)>
       kShort{"vd_procrustes"};
   const Status count = kShort(*ctx, 1, neighbours, t, rot);
   ASSERT_FALSE(count.ok());
   EXPECT_NE(count.message().find("vd_procrustes"), std::string::npos) << count.ToString();
   EXPECT_NE(count.message().find("in the program but its handle"), std::string::npos) << count.ToString();
-  if (count.message().find("'rrrws'") == std::string::npos) {
+  if (count.message().find("'rrrwss'") == std::string::npos) {
     GTEST_SKIP() << "the device reports no argument kinds, so only counts are compared: " << count.ToString();
   }
   // Right count, but it claims to only read the rotations the kernel writes.
   constexpr ocl::Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t,
-                             const Buffer<vd_float4>& t_hat, const Buffer<vd_float4>& rot)>
+                             const Buffer<vd_float4>& t_hat, const Buffer<vd_float4>& rot, int32_t iterations)>
       kReadOnly{"vd_procrustes"};
-  const Status kind = kReadOnly(*ctx, 1, neighbours, t, t, rot);
+  const Status kind = kReadOnly(*ctx, 1, neighbours, t, t, rot, 0);
   ASSERT_FALSE(kind.ok());
-  EXPECT_NE(kind.message().find("'rrrrs'"), std::string::npos) << kind.ToString();
+  EXPECT_NE(kind.message().find("'rrrrss'"), std::string::npos) << kind.ToString();
 }
 
 }  // namespace

@@ -54,45 +54,100 @@ RandomSet MakeSet(int n, unsigned seed) {
   return s;
 }
 
-TEST(ProcrustesParityTest, KernelMatchesCpuReferenceUpToQuaternionSign) {
-  VD_REQUIRE_OCL(ctx);
-  const int n = 5000;
-  const RandomSet s = MakeSet(n, 42);
-  std::vector<vd_float4> cpu_rot(n);
-  cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, cpu_rot.data());
+// Largest |q_a - q_b| entry over the points, q and -q taken as equal.
+double WorstQuatDiff(const std::vector<vd_float4>& a, const std::vector<vd_float4>& b, int* worst_k) {
+  double worst = 0;
+  for (size_t k = 0; k < a.size(); ++k) {
+    const float sign = a[k].x * b[k].x + a[k].y * b[k].y + a[k].z * b[k].z + a[k].w * b[k].w < 0.f ? -1.f : 1.f;
+    const double err = std::max(std::max(std::fabs(a[k].x - sign * b[k].x), std::fabs(a[k].y - sign * b[k].y)),
+                                std::max(std::fabs(a[k].z - sign * b[k].z), std::fabs(a[k].w - sign * b[k].w)));
+    if (!(err <= worst)) {
+      worst = err;
+      *worst_k = int(k);
+    }
+  }
+  return worst;
+}
 
+// The rotation step on the device and on the CPU from the same starting rotations `rot`.
+struct BothRuns {
+  std::vector<vd_float4> cpu, ocl;
+};
+
+BothRuns RunBoth(ocl::Context* ctx, const RandomSet& s, const std::vector<vd_float4>& rot, int iterations) {
+  const int n = int(s.t.size());
+  BothRuns out{rot, {}};
+  cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, iterations, out.cpu.data());
   auto dn = test::ToDevice(ctx, s.neighbours);
   auto dt = test::ToDevice(ctx, s.t);
   auto dth = test::ToDevice(ctx, s.t_hat);
-  auto drot = ctx->Alloc<vd_float4>(n);
-  ASSERT_TRUE(drot.ok()) << drot.status().ToString();
-  Status run = ocl::kProcrustes(*ctx, n, dn, dt, dth, *drot);
-  ASSERT_TRUE(run.ok()) << run.ToString();
-  const std::vector<vd_float4> ocl_rot = test::FromDevice(ctx, *drot, n);
+  auto drot = test::ToDevice(ctx, rot);
+  const Status run = ocl::kProcrustes(*ctx, n, dn, dt, dth, drot, int32_t(iterations));
+  EXPECT_TRUE(run.ok()) << run.ToString();
+  out.ocl = test::FromDevice(ctx, drot, n);
+  return out;
+}
 
-  double worst = 0;
+TEST(ProcrustesParityTest, ExactKernelMatchesCpuReferenceUpToQuaternionSign) {
+  VD_REQUIRE_OCL(ctx);
+  const int n = 5000;
+  const RandomSet s = MakeSet(n, 42);
+  // Garbage starting rotations: the exact path must not read them.
+  const BothRuns r = RunBoth(ctx, s, std::vector<vd_float4>(n, VD_F4(0.3f, -2.f, 0.f, 0.1f)), 0);
   int worst_k = 0, identities = 0;
+  const double worst = WorstQuatDiff(r.ocl, r.cpu, &worst_k);
   for (int k = 0; k < n; ++k) {
-    const vd_float4 a = ocl_rot[k], b = cpu_rot[k];
-    const float sign = a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w < 0.f ? -1.f : 1.f;
-    const double err = std::max(std::max(std::fabs(a.x - sign * b.x), std::fabs(a.y - sign * b.y)),
-                                std::max(std::fabs(a.z - sign * b.z), std::fabs(a.w - sign * b.w)));
-    if (!(err <= worst)) {
-      worst = err;
-      worst_k = k;
-    }
+    const vd_float4 a = r.ocl[k], b = r.cpu[k];
     EXPECT_NEAR(a.x * a.x + a.y * a.y + a.z * a.z + a.w * a.w, 1.f, 1e-5f) << k;
     identities += b.x == 0.f && b.y == 0.f && b.z == 0.f && b.w == 1.f;
   }
-  EXPECT_LE(worst, 1e-5) << "worst at k = " << worst_k << ": (" << ocl_rot[worst_k].x << ", " << ocl_rot[worst_k].y
-                         << ", " << ocl_rot[worst_k].z << ", " << ocl_rot[worst_k].w << ") vs (" << cpu_rot[worst_k].x
-                         << ", " << cpu_rot[worst_k].y << ", " << cpu_rot[worst_k].z << ", " << cpu_rot[worst_k].w << ")";
+  EXPECT_LE(worst, 1e-5) << "worst at k = " << worst_k << ": (" << r.ocl[worst_k].x << ", " << r.ocl[worst_k].y
+                         << ", " << r.ocl[worst_k].z << ", " << r.ocl[worst_k].w << ") vs (" << r.cpu[worst_k].x
+                         << ", " << r.cpu[worst_k].y << ", " << r.cpu[worst_k].z << ", " << r.cpu[worst_k].w << ")";
   // Exactly the three points with nothing to fit (no neighbours, collapsed, S = 0) are identity.
   EXPECT_EQ(identities, 3);
-  for (int k : {0, 2, 4}) EXPECT_EQ(cpu_rot[k].w, 1.f) << k;
+  for (int k : {0, 2, 4}) EXPECT_EQ(r.cpu[k].w, 1.f) << k;
   // The rank-1 points are not the identity: they turn their line onto the deformed one.
-  for (int k : {1, 3}) EXPECT_LT(cpu_rot[k].w, 0.9999f) << k;
-  std::printf("worst |q_ocl - q_cpu| over %d points: %.2e\n", n, worst);
+  for (int k : {1, 3}) EXPECT_LT(r.cpu[k].w, 0.9999f) << k;
+  std::printf("exact: worst |q_ocl - q_cpu| over %d points: %.2e\n", n, worst);
+}
+
+TEST(ProcrustesParityTest, RefinedKernelMatchesCpuReferenceAndTheExactOptimum) {
+  VD_REQUIRE_OCL(ctx);
+  const int n = 5000;
+  const RandomSet s = MakeSet(n, 43);
+  const BothRuns exact = RunBoth(ctx, s, std::vector<vd_float4>(n, VD_F4(0.f, 0.f, 0.f, 1.f)), 0);
+  // Warm starts ~6 degrees off the optimum, as a previous half-step leaves them.
+  std::mt19937 rng(7);
+  std::normal_distribution<float> g(0.f, 0.03f);
+  std::vector<vd_float4> warm(n);
+  for (int k = 0; k < n; ++k) {
+    const vd_float4 turn = VD_F4(g(rng), g(rng), g(rng), 1.f);
+    const vd_float4 q = vd_quat_mul(turn, exact.cpu[k]);
+    warm[k] = q * (1.f / std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w));
+  }
+  const BothRuns r = RunBoth(ctx, s, warm, 3);
+  int worst_k = 0;
+  EXPECT_LE(WorstQuatDiff(r.ocl, r.cpu, &worst_k), 1e-5) << "at k = " << worst_k;
+  // Points with nothing to fit keep their rotation bit for bit.
+  for (int k : {0, 2, 4}) {
+    EXPECT_EQ(r.ocl[k].x, warm[k].w < 0 ? -warm[k].x : warm[k].x) << k;
+    EXPECT_EQ(r.cpu[k].w, std::fabs(warm[k].w)) << k;
+  }
+  // Where the optimum is unique and well conditioned (σ2 >= 0.1 σ1 of S), 3 steps reach it.
+  std::vector<vd_float4> a, b;
+  for (int k = 5; k < n; ++k) {
+    VdMat3 u, v;
+    vd_float4 sigma;
+    vd_svd3(vd_procrustes_covariance(k, s.neighbours.data(), s.t.data(), s.t_hat.data()), &u, &sigma, &v);
+    if (sigma.y < 0.1f * sigma.x) continue;
+    a.push_back(r.cpu[k]);
+    b.push_back(exact.cpu[k]);
+  }
+  ASSERT_GT(a.size(), size_t(n / 2));
+  const double off = WorstQuatDiff(a, b, &worst_k);
+  EXPECT_LE(off, 2e-5) << "at the " << worst_k << "-th well-conditioned point";
+  std::printf("refined (3 steps from ~6 deg): worst |q - q_exact| = %.2e\n", off);
 }
 
 TEST(ProcrustesParityTest, RecoversAGlobalRotationOnTheDevice) {
@@ -122,7 +177,7 @@ TEST(ProcrustesParityTest, RecoversAGlobalRotationOnTheDevice) {
   auto dth = test::ToDevice(ctx, t_hat);
   auto drot = ctx->Alloc<vd_float4>(n);
   ASSERT_TRUE(drot.ok());
-  ASSERT_TRUE(ocl::kProcrustes(*ctx, n, dn, dt, dth, *drot).ok());
+  ASSERT_TRUE(ocl::kProcrustes(*ctx, n, dn, dt, dth, *drot, 0).ok());
   const auto rot = test::FromDevice(ctx, *drot, n);
   std::vector<float> expect;
   for (int k = 0; k < n; ++k) expect.insert(expect.end(), {q.x, q.y, q.z, q.w});

@@ -200,7 +200,7 @@ Neighbourhood MakeNeighbourhood(const Eigen::Vector3d& centre, double h, const E
 }
 
 Eigen::Matrix3d PointRotation(const Neighbourhood& nb) {
-  const vd_float4 q = vd_procrustes_point(0, nb.neighbours.data(), nb.t.data(), nb.t_hat.data());
+  const vd_float4 q = vd_procrustes_point(0, nb.neighbours.data(), nb.t.data(), nb.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
   EXPECT_NEAR(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w, 1.f, 1e-6f);
   EXPECT_GE(q.w, 0.f);
   return ToEigen(vd_quat_to_mat3(q));
@@ -369,6 +369,103 @@ TEST(ProcrustesTest, DegenerateInputsGiveWellDefinedRotations) {
   }
 }
 
+// The angle in degrees of the rotation between two unit quaternions.
+double AngleDeg(vd_float4 a, vd_float4 b) {
+  // 4 asin(|a − b| / 2) with b's sign matched to a: exact to float rounding near 0, where
+  // acos(a · b) loses half the digits.
+  const double sign = double(a.x) * b.x + double(a.y) * b.y + double(a.z) * b.z + double(a.w) * b.w < 0 ? -1.0 : 1.0;
+  const double dx = a.x - sign * b.x, dy = a.y - sign * b.y, dz = a.z - sign * b.z, dw = a.w - sign * b.w;
+  const double chord = std::sqrt(dx * dx + dy * dy + dz * dz + dw * dw);
+  return 4.0 * std::asin(std::min(chord / 2.0, 1.0)) * 180.0 / M_PI;
+}
+
+vd_float4 ToQuat(const Eigen::Matrix3d& r) {
+  const Eigen::Quaterniond q(r);
+  return VD_F4(float(q.x()), float(q.y()), float(q.z()), float(q.w()));
+}
+
+// The warm-started refinement (vd_procrustes_refine) against the exact optimum on noisy
+// neighbourhoods with a unique optimum (σ2 ≥ 0.1 σ1), from starts 2, 10, 30 and 90 degrees off.
+// The worst angle left after each number of steps is the table the default
+// SolverParams::rotation_iterations is chosen from.
+TEST(ProcrustesRefineTest, ConvergesToTheExactOptimumFromWarmStarts) {
+  std::mt19937 rng(12);
+  std::uniform_real_distribution<double> pos(-1.0, 1.0);
+  std::uniform_int_distribution<int> mask(1, 63);
+  std::normal_distribution<double> g(0.0, 1.0);
+  const double starts[] = {2.0, 10.0, 30.0, 90.0};
+  const int kSteps = 6;
+  double worst[4][kSteps + 1] = {};
+  int cases = 0;
+  while (cases < 2000) {
+    std::vector<int> present;
+    const int m = mask(rng);
+    for (int d = 0; d < 6; ++d)
+      if (m & (1 << d)) present.push_back(d);
+    const Neighbourhood nb = MakeNeighbourhood(Eigen::Vector3d(pos(rng), pos(rng), 1.0 + pos(rng)), 0.004,
+                                               RandomRotation(rng), Eigen::Vector3d::Zero(), present, 0.0005, rng);
+    const VdMat3 s = vd_procrustes_covariance(0, nb.neighbours.data(), nb.t.data(), nb.t_hat.data());
+    const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(ToEigen(s)).singularValues();
+    if (sv(1) < 0.1 * sv(0)) continue;
+    ++cases;
+    const vd_float4 exact = ToQuat(EigenProcrustes(s));
+    for (int a = 0; a < 4; ++a) {
+      const Eigen::Vector3d axis = Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized();
+      const Eigen::Matrix3d start = Eigen::AngleAxisd(starts[a] * M_PI / 180.0, axis) * EigenProcrustes(s);
+      for (int steps = 0; steps <= kSteps; ++steps) {
+        const vd_float4 q = vd_procrustes_refine(s, ToQuat(start), steps);
+        worst[a][steps] = std::max(worst[a][steps], AngleDeg(q, exact));
+      }
+    }
+  }
+  for (int a = 0; a < 4; ++a) {
+    std::printf("start %4.0f deg off: worst angle after 0..%d steps:", starts[a], kSteps);
+    for (int steps = 0; steps <= kSteps; ++steps) std::printf(" %.1e", worst[a][steps]);
+    std::printf("\n");
+  }
+  // Newton near the optimum: quadratic, ~1e-5 degrees (float rounding) after 2 steps from a few
+  // degrees (the flip-flop's case); from far, the 1-rad step limit first, then the same.
+  EXPECT_LE(worst[0][1], 0.01);
+  EXPECT_LE(worst[0][2], 1e-4);
+  EXPECT_LE(worst[1][2], 1e-4);
+  EXPECT_LE(worst[2][4], 1e-4);
+  EXPECT_LE(worst[3][5], 1e-4);
+  for (int a = 0; a < 4; ++a) EXPECT_LT(worst[a][kSteps], worst[a][0]) << starts[a];
+}
+
+TEST(ProcrustesRefineTest, DegenerateInputsKeepOrFollowTheWarmStart) {
+  std::mt19937 rng(13);
+  const vd_float4 warm = ToQuat(RandomRotation(rng));
+  // Nothing to fit: the warm start comes back unchanged (sign normalised to w >= 0).
+  for (const VdMat3& s : {vd_mat3_zero(), [] { VdMat3 b = vd_mat3_identity(); b.m[2] = NAN; return b; }()}) {
+    const vd_float4 q = vd_procrustes_refine(s, warm, 3);
+    const float sign = warm.w < 0 ? -1.f : 1.f;
+    EXPECT_EQ(q.x, sign * warm.x);
+    EXPECT_EQ(q.w, sign * warm.w);
+  }
+  // Rank 1 (one neighbour): R must turn the rest direction onto the deformed one, and keep the
+  // warm start's twist about it: the result is the warm start turned by the shortest arc from
+  // R_warm p to q, to first order in the small misalignment.
+  double worst_line = 0, worst_twist = 0;
+  for (int i = 0; i < 500; ++i) {
+    const Eigen::Matrix3d rot = RandomRotation(rng);
+    const Neighbourhood nb = MakeNeighbourhood(Eigen::Vector3d(0.3, -0.2, 0.8), 0.01, rot, Eigen::Vector3d::Zero(), {2}, 0, rng);
+    const VdMat3 s = vd_procrustes_covariance(0, nb.neighbours.data(), nb.t.data(), nb.t_hat.data());
+    std::normal_distribution<double> g(0.0, 1.0);
+    const Eigen::Matrix3d start =
+        Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized()) * rot;
+    const Eigen::Matrix3d r = ToEigen(vd_quat_to_mat3(vd_procrustes_refine(s, ToQuat(start), 4)));
+    const Eigen::Vector3d p = (ToEigen(nb.t_hat[0]) - ToEigen(nb.t_hat[3])).normalized();
+    const Eigen::Vector3d q = (ToEigen(nb.t[0]) - ToEigen(nb.t[3])).normalized();
+    worst_line = std::max(worst_line, (r * p - q).norm());
+    const Eigen::Matrix3d shortest = Eigen::Quaterniond::FromTwoVectors(start * p, q).toRotationMatrix() * start;
+    worst_twist = std::max(worst_twist, Eigen::AngleAxisd(r * shortest.transpose()).angle() * 180.0 / M_PI);
+  }
+  EXPECT_LE(worst_line, 1e-4);
+  EXPECT_LE(worst_twist, 0.2);
+  std::printf("rank 1 from 3 deg: |R p - q| <= %.1e, twist off the warm start's <= %.2f deg\n", worst_line, worst_twist);
+}
+
 TEST(QuaternionTest, RoundTripAndRotate) {
   std::mt19937 rng(9);
   std::normal_distribution<float> g(0.f, 1.f);
@@ -445,9 +542,9 @@ TEST(ProcrustesTest, CpuReferenceMatchesPointFunctionAndReportsThroughput) {
   const int n = int(s.t.size());
   ASSERT_GT(n, 150000);
   std::vector<vd_float4> rot(n);
-  cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, rot.data());
+  cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, 0, rot.data());
   for (int k = 0; k < n; k += 997) {
-    const vd_float4 q = vd_procrustes_point(k, s.neighbours.data(), s.t.data(), s.t_hat.data());
+    const vd_float4 q = vd_procrustes_point(k, s.neighbours.data(), s.t.data(), s.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
     EXPECT_EQ(rot[k].x, q.x);
     EXPECT_EQ(rot[k].y, q.y);
     EXPECT_EQ(rot[k].z, q.z);
@@ -456,7 +553,7 @@ TEST(ProcrustesTest, CpuReferenceMatchesPointFunctionAndReportsThroughput) {
   double best = 1e30;
   for (int rep = 0; rep < 3; ++rep) {
     const auto t0 = std::chrono::steady_clock::now();
-    cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, rot.data());
+    cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, 0, rot.data());
     best = std::min(best, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   std::printf("cpu::Procrustes: %d points in %.2f ms = %.1f ms per million points (best of 3)\n", n, best,

@@ -83,10 +83,67 @@ VD_INLINE VdMat3 vd_procrustes_covariance(int k, VD_GLOBAL const int* neighbours
   return s;
 }
 
-/* R_k of active point k as a unit quaternion (x, y, z, w), w >= 0. */
+/* The Hamilton product a ⊗ b: the rotation b, then a. */
+VD_INLINE vd_float4 vd_quat_mul(vd_float4 a, vd_float4 b) {
+  return VD_F4(a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y, a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x,
+               a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w, a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z);
+}
+
+/* Warm-started rotation extraction: the same optimum as vd_procrustes_rotation, maximising
+ * f(R) = tr(R S), reached by `iterations` Newton steps on the rotation from the unit quaternion q
+ * instead of a 3x3 SVD. With M = R S and R turned to exp([ω]) R,
+ *   f ≈ tr M + gᵀω − ½ ωᵀ H ω,  g = (M₁₂ − M₂₁, M₂₀ − M₀₂, M₀₁ − M₁₀),  H = tr(M) I − (M + Mᵀ)/2,
+ * so the step is ω = H⁻¹ g (a 3x3 symmetric solve by its adjugate). At the optimum M = V Σ Vᵀ and
+ * H has eigenvalues σ₂+σ₃, σ₁+σ₃, σ₁+σ₂, positive wherever the optimum is unique: near it the
+ * steps converge quadratically. Where H is not positive definite (a start far from the optimum),
+ * the step falls back to ω = g / |tr M| (Müller et al. 2016, "A robust method to extract the
+ * rotational part of deformations"), which always climbs. A step is applied as the quaternion
+ * (ω/2, 1) normalised, ω first shortened to length 1: a turn by 2 atan(|ω|/2), equal to |ω| to
+ * second order, and at most 53 degrees per step.
+ * The only data-dependent branch is the S ≈ 0 test; the rest are selects, so a work-group runs
+ * in lockstep (the SVD's Jacobi sweeps branch per pivot).
+ * - S ≈ 0 or non-finite: nothing constrains R; q is returned as it is (the previous rotation
+ *   stays, where vd_procrustes_rotation answers the identity).
+ * - Rank 1: every rotation turning the line of the p_j onto that of the q_j is optimal; the
+ *   steps add no twist about the line (g has none), so the one nearest q is kept.
+ * In the flip-flop, q is the point's rotation of the previous half-step (or of the previous
+ * frame), within a few degrees of the optimum (tests/solver/svd3_test.cpp measures the
+ * convergence from 2 to 90 degrees). */
+VD_INLINE vd_float4 vd_procrustes_refine(VdMat3 s, vd_float4 q, int iterations) {
+  if (!(vd_mat3_max_abs(s) > VD_PROCRUSTES_MIN_COVARIANCE) || !vd_mat3_is_finite(s)) return q;
+  for (int it = 0; it < iterations; ++it) {
+    VdMat3 m = vd_mat3_mul(vd_quat_to_mat3(q), s);
+    float tr = m.m[0] + m.m[4] + m.m[8];
+    vd_float4 g = VD_F4(m.m[5] - m.m[7], m.m[6] - m.m[2], m.m[1] - m.m[3], 0.0f);
+    float h00 = tr - m.m[0], h11 = tr - m.m[4], h22 = tr - m.m[8];
+    float h01 = -0.5f * (m.m[1] + m.m[3]), h02 = -0.5f * (m.m[2] + m.m[6]), h12 = -0.5f * (m.m[5] + m.m[7]);
+    float c00 = h11 * h22 - h12 * h12, c01 = h02 * h12 - h01 * h22, c02 = h01 * h12 - h02 * h11;
+    float c11 = h00 * h22 - h02 * h02, c12 = h01 * h02 - h00 * h12, c22 = h00 * h11 - h01 * h01;
+    float det = h00 * c00 + h01 * c01 + h02 * c02;
+    /* Positive definite by its leading minors, det well away from rounding (relative to tr³). */
+    float scale = fabs(tr) + VD_PROCRUSTES_MIN_COVARIANCE;
+    int definite = h00 > 0.0f && c22 > 0.0f && det > 1e-6f * scale * scale * scale;
+    float inv_det = definite ? 1.0f / det : 0.0f;
+    float inv_tr = definite ? 0.0f : 1.0f / scale;
+    vd_float4 w = VD_F4((c00 * g.x + c01 * g.y + c02 * g.z) * inv_det + g.x * inv_tr,
+                        (c01 * g.x + c11 * g.y + c12 * g.z) * inv_det + g.y * inv_tr,
+                        (c02 * g.x + c12 * g.y + c22 * g.z) * inv_det + g.z * inv_tr, 0.0f);
+    /* A turn of at most ~1 rad per step: the quadratic model holds near the optimum only. */
+    float shrink = 0.5f / fmax(1.0f, vd_length3(w));
+    vd_float4 step = vd_quat_mul(VD_F4(shrink * w.x, shrink * w.y, shrink * w.z, 1.0f), q);
+    q = step * (1.0f / sqrt(vd_dot3(step, step) + step.w * step.w));
+  }
+  return q.w < 0.0f ? -q : q;
+}
+
+/* R_k of active point k as a unit quaternion (x, y, z, w), w >= 0: with iterations = 0 the exact
+ * optimum by SVD (vd_procrustes_rotation), else vd_procrustes_refine from warm[k], the point's
+ * current rotation. */
 VD_INLINE vd_float4 vd_procrustes_point(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_float4* t,
-                                        VD_GLOBAL const vd_float4* t_hat) {
-  return vd_mat3_to_quat(vd_procrustes_rotation(vd_procrustes_covariance(k, neighbours, t, t_hat)));
+                                        VD_GLOBAL const vd_float4* t_hat, vd_float4 warm, int iterations) {
+  VdMat3 s = vd_procrustes_covariance(k, neighbours, t, t_hat);
+  if (iterations <= 0) return vd_mat3_to_quat(vd_procrustes_rotation(s));
+  return vd_procrustes_refine(s, warm, iterations);
 }
 
 #endif /* VD_PROCRUSTES_H */

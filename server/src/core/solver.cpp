@@ -24,6 +24,8 @@ void SolverParams::Bind(FlagParser* f) {
          "Flip-flop iterations on each coarse level per outer iteration");
   f->Add("pcg-iterations", &pcg_iterations, "PCG iterations per position step (at most)");
   f->Add("pcg-tolerance", &pcg_tolerance, "Relative residual at which PCG stops early");
+  f->Add("rotation-iterations", &rotation_iterations,
+         "Warm-started refinement steps per rotation step (0 = exact SVD each time)");
   f->AddNegation("no-btb-cache-coarse", &cache_btb_coarse,
                  "Apply B^T B from the constraints on the coarse levels instead of caching its blocks");
   f->AddNegation("no-btb-cache-fine", &cache_btb_fine,
@@ -38,6 +40,8 @@ Status SolverParams::Validate() const {
     return ParamOutOfBounds("SolverParams", "flip_flop_iterations", flip_flop_iterations, "1 <= n <= 100");
   if (!(pcg_iterations >= 1 && pcg_iterations <= 1000)) return ParamOutOfBounds("SolverParams", "pcg_iterations", pcg_iterations, "1 <= n <= 1000");
   if (!(pcg_tolerance > 0.f && pcg_tolerance < 1.f)) return ParamOutOfBounds("SolverParams", "pcg_tolerance", pcg_tolerance, "0 < tol < 1");
+  if (!(rotation_iterations >= 0 && rotation_iterations <= 50))
+    return ParamOutOfBounds("SolverParams", "rotation_iterations", rotation_iterations, "0 <= n <= 50");
   if (!(levels >= 1 && levels <= 5)) return ParamOutOfBounds("SolverParams", "levels", levels, "1 <= levels <= 5");
   if (!(coarse_flip_flop_iterations >= 0 && coarse_flip_flop_iterations <= 100))
     return ParamOutOfBounds("SolverParams", "coarse_flip_flop_iterations", coarse_flip_flop_iterations, "0 <= n <= 100");
@@ -61,6 +65,7 @@ Status DeviceSolver::Setup(const DeviceVolume& v, const DeviceActiveSet& active,
                            const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
   if (!v.has_deformation()) return FailedPrecondition("the solver needs a grid with a deformation field");
   VD_RETURN_IF_ERROR(SetupConstraints(v.vol, active, per_pixel, num_pixels));
+  rot_warm_ = true;
   return ocl::GatherState(ops_->ctx(), m_, active.list, v.def_pos, v.def_rot, x_, rot_);
 }
 
@@ -68,6 +73,7 @@ Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0) {
   ocl::Context& ctx = ops_->ctx();
   if (m_ == 0) return Status::Ok();
   VD_RETURN_IF_ERROR(ctx.Copy(x0, x_, m_));
+  rot_warm_ = false;
   return ctx.Fill(rot_, VD_F4(0.f, 0.f, 0.f, 1.f), m_);
 }
 
@@ -165,7 +171,9 @@ StatusOr<int> DeviceSolver::PositionStep() {
 }
 
 Status DeviceSolver::RotationStep() {
-  return ocl::FitRotations(ops_->ctx(), m_, active_->neighbours, x_, rest_, rot_);
+  const int iterations = rot_warm_ ? params_.rotation_iterations : 0;
+  rot_warm_ = true;
+  return ocl::FitRotations(ops_->ctx(), m_, active_->neighbours, x_, rest_, iterations, rot_);
 }
 
 StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {

@@ -32,6 +32,10 @@ struct SolverParams {
   // PCG iterations per position step, and the relative residual at which it stops early.
   int pcg_iterations = 20;
   float pcg_tolerance = 1e-4f;
+  // Rotation step: refinement steps from each point's current rotation (shared/procrustes.h,
+  // branch-free, ~N times cheaper than the SVD), or 0 for the exact SVD every time. The first
+  // rotation step of a coarse level, whose rotations start at the identity, is always exact.
+  int rotation_iterations = 2;
   Status Validate() const;
   // Registers a flag for every field; the fields' values now are the defaults --help shows.
   void Bind(FlagParser* flags);
@@ -62,7 +66,8 @@ class DeviceSolver {
   Status InitState(const ocl::Buffer<vd_float4>& x0);
   // Position step: PCG from the current positions; returns the iterations used.
   StatusOr<int> PositionStep();
-  // Rotation step: Procrustes for every active point.
+  // Rotation step: Procrustes for every active point, refined from the current rotations when
+  // they are warm (after Setup or a rotation step), exact after InitState.
   Status RotationStep();
   // E_total at the current state, and its two parts.
   StatusOr<double> Energy(double* dense = nullptr, double* reg = nullptr);
@@ -98,6 +103,9 @@ class DeviceSolver {
   ocl::Buffer<float> targets_;
   ocl::Buffer<float> residuals_;
   ocl::Buffer<vd_float4> x_, x_prev_, rot_, rest_, b_, r_, z_, p_, q_;
+  // rot_ holds rotations near the optimum (the stored field's or a previous rotation step's), so
+  // the rotation step may refine them instead of solving from scratch.
+  bool rot_warm_ = false;
   const bool cache_btb_;
   ocl::Buffer<float> btb_;
   ocl::Buffer<int32_t> btb_nbr_;

@@ -2,9 +2,10 @@
 
 namespace vd::cpu {
 
-void Procrustes(const int* neighbours, const vd_float4* t, const vd_float4* t_hat, int n, vd_float4* rot) {
+void Procrustes(const int* neighbours, const vd_float4* t, const vd_float4* t_hat, int n, int iterations,
+                vd_float4* rot) {
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < n; ++k) rot[k] = vd_procrustes_point(k, neighbours, t, t_hat);
+  for (int k = 0; k < n; ++k) rot[k] = vd_procrustes_point(k, neighbours, t, t_hat, rot[k], iterations);
 }
 
 }  // namespace vd::cpu

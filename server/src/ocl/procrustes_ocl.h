@@ -9,14 +9,16 @@
 
 namespace vd::ocl {
 
-// One item per active point: R_k as a unit quaternion.
+// One item per active point: R_k as a unit quaternion, read as the warm start when iterations > 0.
 inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t,
-                             const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot)> kProcrustes{"vd_procrustes"};
+                             const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot, int32_t iterations)>
+    kProcrustes{"vd_procrustes"};
 
 
 // The rotation step of DeviceSolver (core/solver.cpp): R_k of each of the m active points fitted
-// to its neighbours' current positions t against their rest positions t_hat.
+// to its neighbours' current positions t against their rest positions t_hat: exact (SVD) when
+// iterations = 0, else refined from the rotations rot holds (shared/procrustes.h).
 Status FitRotations(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t,
-                    const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot);
+                    const Buffer<vd_float4>& t_hat, int iterations, Buffer<vd_float4>& rot);
 
 }  // namespace vd::ocl
