@@ -83,12 +83,6 @@ VD_INLINE VdMat3 vd_procrustes_covariance(int k, VD_GLOBAL const int* neighbours
   return s;
 }
 
-/* The Hamilton product a ⊗ b: the rotation b, then a. */
-VD_INLINE vd_float4 vd_quat_mul(vd_float4 a, vd_float4 b) {
-  return VD_F4(a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y, a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x,
-               a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w, a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z);
-}
-
 /* Warm-started rotation extraction: the same optimum as vd_procrustes_rotation, maximising
  * f(R) = tr(R S), reached by `iterations` Newton steps on the rotation from the unit quaternion q
  * instead of a 3x3 SVD. With M = R S and R turned to exp([ω]) R,

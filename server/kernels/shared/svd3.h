@@ -273,4 +273,10 @@ VD_INLINE vd_float4 vd_quat_rotate(vd_float4 q, vd_float4 v) {
                v.z + 2.0f * (q.w * uv.z + uuv.z), 0.0f);
 }
 
+/* The Hamilton product a ⊗ b: the rotation b, then a. */
+VD_INLINE vd_float4 vd_quat_mul(vd_float4 a, vd_float4 b) {
+  return VD_F4(a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y, a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x,
+               a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w, a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z);
+}
+
 #endif /* VD_SVD3_H */
