@@ -86,12 +86,24 @@ __kernel void vd_system_apply_kernel(__global const int* list, __global const in
   q[k] = vd_system_apply(k, list, compact, vol, neighbours, cons, cell_start, r, d, w);
 }
 
-/* Cached B^T B: built once per solve, applied every PCG iteration. */
-__kernel void vd_btb_build_kernel(__global const int* list, __global const int* compact, VdVolume vol,
-                                  __global const VdCorrespondence* cons, __global const uint* cell_start,
-                                  VdSolverWeights w, __global float* blocks, __global int* nbr, int vd_items) {
+/* Cached B^T B: built once per solve (moments per cell, then per point), applied every PCG
+ * iteration. vd_cell_moments_kernel: one item per active point, as the first corner of a cell. */
+__kernel void vd_cell_moments_kernel(__global const int* list, VdVolume vol, __global const VdCorrespondence* cons,
+                                     __global const uint* cell_start, __global float* moments, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
-  vd_btb_build(get_global_id(0), list, compact, vol, cons, cell_start, w, blocks, nbr);
+  vd_cell_moments(get_global_id(0), list, vol, cons, cell_start, moments);
+}
+
+__kernel void vd_btb_assemble_kernel(__global const int* list, __global const int* compact, VdVolume vol,
+                                     __global const int* neighbours, __global const uint* cell_start,
+                                     __global const float* moments, VdSolverWeights w, __global float* blocks,
+                                     __global int* nbr, __global float4* data_rhs, __global VdMat3* diag_inv,
+                                     int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  VdMat3 inv;
+  data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, cell_start, moments, w, blocks, nbr, &inv);
+  diag_inv[k] = inv;
 }
 
 __kernel void vd_system_apply_cached_kernel(__global const int* neighbours, __global const float* blocks,

@@ -140,46 +140,135 @@ VD_INLINE vd_float4 vd_neighbour_edge(int j, float h) {
  * stored as 6 floats (xx, xy, xz, yy, yz, zz): 162 floats per point, with the 27 compact
  * neighbour indices (-1 outside M) beside them. The product then costs 27 small mat-vecs per point
  * whatever the number of constraints, which matters on the coarse levels where a cell holds
- * thousands of them. */
+ * thousands of them.
+ *
+ * Built in two passes so that each constraint is visited once, not once per corner:
+ * 1. Per cell, moments of its constraints. Along one axis, the product of two corners' trilinear
+ *    factors is (1-f)^2 (both corners at 0), f (1-f) (one at 0, one at 1) or f^2 (both at 1): a
+ *    type t = k_axis + j_axis in {0, 1, 2}. So every block of the cell's 8x8 corner pairs is one of
+ *    27 moments M[tx + 3 ty + 9 tz] = sum_c w_c P_tx(fx) P_ty(fy) P_tz(fz) n_c n_c^T, and the data
+ *    right-hand side of corner o is V[o] = sum_c alpha_co w_c (n_c . p_c) n_c.
+ * 2. Per point, the blocks, the data right-hand side and the Jacobi preconditioner are sums of
+ *    those moments over the 8 cells the point is a corner of. */
 #define VD_BTB_BLOCKS 27
 #define VD_BTB_FLOATS (6 * VD_BTB_BLOCKS)
+/* Per cell: the 27 symmetric moments, then the 8 corners' right-hand sides (3 floats each). */
+#define VD_CELL_MOMENT_FLOATS (VD_BTB_FLOATS + 24)
 
-VD_INLINE void vd_btb_build(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
-                            VD_GLOBAL const VdCorrespondence* cons, VD_GLOBAL const vd_uint* cell_start,
-                            VdSolverWeights w, VD_GLOBAL float* blocks, VD_GLOBAL int* nbr) {
+/* Moments of the constraints of the cell whose first corner is active point kc (rows
+ * cell_start[kc] .. cell_start[kc + 1] of the sorted constraints); nothing is written for a cell
+ * without constraints (the assembly skips it). */
+VD_INLINE void vd_cell_moments(int kc, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const VdCorrespondence* cons,
+                               VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL float* moments) {
+  vd_uint c0 = cell_start[kc], c1 = cell_start[kc + 1];
+  if (c0 == c1) return;
+  int x, y, z;
+  vd_grid_coords(list[kc], vol, &x, &y, &z);
+  float acc[VD_CELL_MOMENT_FLOATS];
+  for (int i = 0; i < VD_CELL_MOMENT_FLOATS; ++i) acc[i] = 0.0f;
+  for (vd_uint c = c0; c < c1; ++c) {
+    VdCorrespondence cc = cons[c];
+    float fx = cc.canonical.x - (float)x, fy = cc.canonical.y - (float)y, fz = cc.canonical.z - (float)z;
+    float gx = 1.0f - fx, gy = 1.0f - fy, gz = 1.0f - fz;
+    float px[3] = {gx * gx, fx * gx, fx * fx};
+    float py[3] = {gy * gy, fy * gy, fy * fy};
+    float pz[3] = {gz * gz, fz * gz, fz * fz};
+    float w = cc.canonical.w;
+    vd_float4 n = cc.normal;
+    float nn[6] = {w * n.x * n.x, w * n.x * n.y, w * n.x * n.z, w * n.y * n.y, w * n.y * n.z, w * n.z * n.z};
+    VD_UNROLL
+    for (int m = 0; m < 27; ++m) {
+      float p = px[m % 3] * py[(m / 3) % 3] * pz[m / 9];
+      VD_UNROLL
+      for (int e = 0; e < 6; ++e) acc[6 * m + e] += p * nn[e];
+    }
+    float t = w * vd_dot3(n, cc.target);
+    float ax[2] = {gx, fx}, ay[2] = {gy, fy}, az[2] = {gz, fz};
+    VD_UNROLL
+    for (int o = 0; o < 8; ++o) {
+      float a = ax[o & 1] * ay[(o >> 1) & 1] * az[o >> 2] * t;
+      acc[VD_BTB_FLOATS + 3 * o + 0] += a * n.x;
+      acc[VD_BTB_FLOATS + 3 * o + 1] += a * n.y;
+      acc[VD_BTB_FLOATS + 3 * o + 2] += a * n.z;
+    }
+  }
+  VD_GLOBAL float* out = moments + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)kc;
+  for (int i = 0; i < VD_CELL_MOMENT_FLOATS; ++i) out[i] = acc[i];
+}
+
+/* The inverse of a diagonal block (symmetric positive definite), by the adjugate. */
+VD_INLINE VdMat3 vd_mat3_inverse_spd(VdMat3 d) {
+  float det = vd_mat3_det(d);
+  VdMat3 inv;
+  inv.m[0] = (d.m[4] * d.m[8] - d.m[5] * d.m[7]) / det;
+  inv.m[1] = (d.m[2] * d.m[7] - d.m[1] * d.m[8]) / det;
+  inv.m[2] = (d.m[1] * d.m[5] - d.m[2] * d.m[4]) / det;
+  inv.m[3] = (d.m[5] * d.m[6] - d.m[3] * d.m[8]) / det;
+  inv.m[4] = (d.m[0] * d.m[8] - d.m[2] * d.m[6]) / det;
+  inv.m[5] = (d.m[2] * d.m[3] - d.m[0] * d.m[5]) / det;
+  inv.m[6] = (d.m[3] * d.m[7] - d.m[4] * d.m[6]) / det;
+  inv.m[7] = (d.m[1] * d.m[6] - d.m[0] * d.m[7]) / det;
+  inv.m[8] = (d.m[0] * d.m[4] - d.m[1] * d.m[3]) / det;
+  return inv;
+}
+
+/* Point k's 27 blocks and neighbour indices (times w_d), its data right-hand side (returned, times
+ * w_d) and the inverse of its diagonal block 2 w_r deg_k I + (B^T B)_kk + lambda I, from the
+ * moments of the (up to 8) cells it is a corner of. */
+VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
+                                    VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_uint* cell_start,
+                                    VD_GLOBAL const float* moments, VdSolverWeights w, VD_GLOBAL float* blocks,
+                                    VD_GLOBAL int* nbr, VdMat3* diag_inv) {
   int x, y, z;
   vd_grid_coords(list[k], vol, &x, &y, &z);
-  /* Accumulated in private memory, written once. */
-  float acc[VD_BTB_FLOATS];
-  for (int i = 0; i < VD_BTB_FLOATS; ++i) acc[i] = 0.0f;
   for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
     int nx = x + o % 3 - 1, ny = y + (o / 3) % 3 - 1, nz = z + o / 9 - 1;
     int inside = nx >= 0 && ny >= 0 && nz >= 0 && nx < vol.dim_x && ny < vol.dim_y && nz < vol.dim_z;
     nbr[VD_BTB_BLOCKS * k + o] = inside ? compact[vd_grid_index(vol, nx, ny, nz)] : -1;
   }
+  float acc[VD_BTB_FLOATS];
+  for (int i = 0; i < VD_BTB_FLOATS; ++i) acc[i] = 0.0f;
+  vd_float4 data = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  VD_UNROLL
   for (int ok = 0; ok < 8; ++ok) {
     int kx = ok & 1, ky = (ok >> 1) & 1, kz = (ok >> 2) & 1;
     int cx = x - kx, cy = y - ky, cz = z - kz;
     if (cx < 0 || cy < 0 || cz < 0 || cx > vol.dim_x - 2 || cy > vol.dim_y - 2 || cz > vol.dim_z - 2) continue;
     int kc = compact[vd_grid_index(vol, cx, cy, cz)];
-    if (kc < 0) continue;
-    for (vd_uint c = cell_start[kc]; c < cell_start[kc + 1]; ++c) {
-      VdCorrespondence cc = cons[c];
-      float fx = cc.canonical.x - (float)cx, fy = cc.canonical.y - (float)cy, fz = cc.canonical.z - (float)cz;
-      float ak = (kx ? fx : 1.0f - fx) * (ky ? fy : 1.0f - fy) * (kz ? fz : 1.0f - fz);
-      float s = w.w_dense * cc.canonical.w * ak;
-      vd_float4 n = cc.normal;
-      float nn[6] = {n.x * n.x, n.x * n.y, n.x * n.z, n.y * n.y, n.y * n.z, n.z * n.z};
-      for (int oj = 0; oj < 8; ++oj) {
-        int jx = oj & 1, jy = (oj >> 1) & 1, jz = (oj >> 2) & 1;
-        float aj = (jx ? fx : 1.0f - fx) * (jy ? fy : 1.0f - fy) * (jz ? fz : 1.0f - fz);
-        int b = (jx - kx + 1) + 3 * (jy - ky + 1) + 9 * (jz - kz + 1);
-        for (int e = 0; e < 6; ++e) acc[6 * b + e] += s * aj * nn[e];
-      }
+    if (kc < 0 || cell_start[kc] == cell_start[kc + 1]) continue;
+    VD_GLOBAL const float* mom = moments + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)kc;
+    VD_UNROLL
+    for (int oj = 0; oj < 8; ++oj) {
+      int jx = oj & 1, jy = (oj >> 1) & 1, jz = (oj >> 2) & 1;
+      int b = (jx - kx + 1) + 3 * (jy - ky + 1) + 9 * (jz - kz + 1);
+      int m = (kx + jx) + 3 * (ky + jy) + 9 * (kz + jz);
+      VD_UNROLL
+      for (int e = 0; e < 6; ++e) acc[6 * b + e] += mom[6 * m + e];
     }
+    VD_GLOBAL const float* v = mom + VD_BTB_FLOATS + 3 * ok;
+    data = data + VD_F4(v[0], v[1], v[2], 0.0f);
   }
   VD_GLOBAL float* out = blocks + (size_t)VD_BTB_FLOATS * (size_t)k;
-  for (int i = 0; i < VD_BTB_FLOATS; ++i) out[i] = acc[i];
+  for (int i = 0; i < VD_BTB_FLOATS; ++i) out[i] = w.w_dense * acc[i];
+  int degree = 0;
+  for (int j = 0; j < 6; ++j) degree += neighbours[6 * k + j] >= 0;
+  float s = 2.0f * w.w_reg * (float)degree + w.damping;
+  /* The diagonal block is offset (0, 0, 0): b = 13. */
+  const float* c = acc + 6 * 13;
+  VdMat3 diag;
+  diag.m[0] = w.w_dense * c[0] + s;
+  diag.m[1] = w.w_dense * c[1];
+  diag.m[2] = w.w_dense * c[2];
+  diag.m[3] = w.w_dense * c[1];
+  diag.m[4] = w.w_dense * c[3] + s;
+  diag.m[5] = w.w_dense * c[4];
+  diag.m[6] = w.w_dense * c[2];
+  diag.m[7] = w.w_dense * c[4];
+  diag.m[8] = w.w_dense * c[5] + s;
+  *diag_inv = vd_mat3_inverse_spd(diag);
+  data = data * w.w_dense;
+  data.w = 0.0f;
+  return data;
 }
 
 /* (w_d B^T B d)_k from the cached blocks. */
@@ -241,19 +330,8 @@ VD_INLINE vd_float4 vd_system_data_diag(int k, VD_GLOBAL const int* list, VD_GLO
   diag.m[0] += s;
   diag.m[4] += s;
   diag.m[8] += s;
-  /* Symmetric positive definite (s > 0): invert by the adjugate. */
-  float det = vd_mat3_det(diag);
-  VdMat3 inv;
-  inv.m[0] = (diag.m[4] * diag.m[8] - diag.m[5] * diag.m[7]) / det;
-  inv.m[1] = (diag.m[2] * diag.m[7] - diag.m[1] * diag.m[8]) / det;
-  inv.m[2] = (diag.m[1] * diag.m[5] - diag.m[2] * diag.m[4]) / det;
-  inv.m[3] = (diag.m[5] * diag.m[6] - diag.m[3] * diag.m[8]) / det;
-  inv.m[4] = (diag.m[0] * diag.m[8] - diag.m[2] * diag.m[6]) / det;
-  inv.m[5] = (diag.m[2] * diag.m[3] - diag.m[0] * diag.m[5]) / det;
-  inv.m[6] = (diag.m[3] * diag.m[7] - diag.m[4] * diag.m[6]) / det;
-  inv.m[7] = (diag.m[1] * diag.m[6] - diag.m[0] * diag.m[7]) / det;
-  inv.m[8] = (diag.m[0] * diag.m[4] - diag.m[1] * diag.m[3]) / det;
-  *diag_inv = inv;
+  /* Symmetric positive definite (s > 0). */
+  *diag_inv = vd_mat3_inverse_spd(diag);
   data = data * w.w_dense;
   data.w = 0.0f;
   return data;

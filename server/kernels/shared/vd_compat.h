@@ -9,7 +9,10 @@
 #pragma OPENCL FP_CONTRACT OFF
 #define VD_GLOBAL __global
 #define VD_CONSTANT __constant
-#define VD_INLINE inline
+/* Inlined everywhere: a call left in a kernel body keeps PoCL from vectorising across work items. */
+#define VD_INLINE inline __attribute__((always_inline))
+/* Full unrolling of a short loop with a constant trip count (static indices into private arrays). */
+#define VD_UNROLL _Pragma("unroll")
 #define VD_KERNEL_SIDE 1
 typedef float4 vd_float4;
 typedef uint vd_uint;
@@ -29,6 +32,7 @@ typedef ushort vd_ushort;
 #define VD_GLOBAL
 #define VD_CONSTANT static const
 #define VD_INLINE inline
+#define VD_UNROLL _Pragma("GCC unroll 64")
 typedef uint32_t vd_uint;
 typedef int64_t vd_long;
 typedef uint8_t vd_uchar;

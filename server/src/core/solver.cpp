@@ -101,13 +101,14 @@ Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet
   VD_RETURN_IF_ERROR(ctx.Reserve(&residuals_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
   VD_RETURN_IF_ERROR(ocl::SortConstraints(ctx, num_pixels, per_pixel, cell_of_, cell_start_, cell_count_, cons_));
-  VD_RETURN_IF_ERROR(ocl::ConstraintTargets(ctx, total, cons_, targets_));
   if (cache_btb_) {
+    VD_RETURN_IF_ERROR(ctx.Reserve(&moments_, VD_CELL_MOMENT_FLOATS * std::max<size_t>(m_, 1)));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * std::max<size_t>(m_, 1)));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * std::max<size_t>(m_, 1)));
-    VD_RETURN_IF_ERROR(
-        ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, cons_, cell_start_, Weights(), btb_, btb_nbr_));
+    return ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, active.neighbours, cons_, cell_start_, Weights(),
+                         moments_, btb_, btb_nbr_, data_rhs_, diag_inv_);
   }
+  VD_RETURN_IF_ERROR(ocl::ConstraintTargets(ctx, total, cons_, targets_));
   return ocl::DataRhsAndDiagonal(ctx, m_, active.list, active.compact, vol_, active.neighbours, cons_, cell_start_,
                                  targets_, Weights(), data_rhs_, diag_inv_);
 }

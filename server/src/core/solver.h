@@ -110,6 +110,8 @@ class DeviceSolver {
   const bool cache_btb_;
   ocl::Buffer<float> btb_;
   ocl::Buffer<int32_t> btb_nbr_;
+  // Per-cell moments of the constraints, scratch of the B^T B build (shared/solver.h).
+  ocl::Buffer<float> moments_;
   // A d into q (both paths).
   Status Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float4>& q);
   // Constraint-only part of b, fixed per solve.

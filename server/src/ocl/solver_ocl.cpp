@@ -57,9 +57,11 @@ Status ApplySystem(Context& ctx, size_t m, const Buffer<int32_t>& list, const Bu
 }
 
 Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start, VdSolverWeights w,
-                Buffer<float>& blocks, Buffer<int32_t>& nbr) {
-  return kBtbBuild(ctx, m, list, compact, vol, cons, cell_start, w, blocks, nbr);
+                const Buffer<int32_t>& neighbours, const Buffer<VdCorrespondence>& cons,
+                const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
+                Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
+  VD_RETURN_IF_ERROR(kCellMoments(ctx, m, list, vol, cons, cell_start, moments));
+  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, cell_start, moments, w, blocks, nbr, data_rhs, diag_inv);
 }
 
 Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& blocks,

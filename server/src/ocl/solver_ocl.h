@@ -44,10 +44,15 @@ inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>&
                              const Buffer<int32_t>& neighbours, const Buffer<VdCorrespondence>& cons,
                              const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
                              VdSolverWeights w, Buffer<vd_float4>& q)> kSystemApply{"vd_system_apply_kernel"};
+// One item per active point, the first corner of its cell.
+inline constexpr Kernel<void(const Buffer<int32_t>& list, VdVolume vol, const Buffer<VdCorrespondence>& cons,
+                             const Buffer<uint32_t>& cell_start,
+                             Buffer<float>& moments)> kCellMoments{"vd_cell_moments_kernel"};
 inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                             const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start,
-                             VdSolverWeights w, Buffer<float>& blocks,
-                             Buffer<int32_t>& nbr)> kBtbBuild{"vd_btb_build_kernel"};
+                             const Buffer<int32_t>& neighbours, const Buffer<uint32_t>& cell_start,
+                             const Buffer<float>& moments, VdSolverWeights w, Buffer<float>& blocks,
+                             Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs,
+                             Buffer<VdMat3>& diag_inv)> kBtbAssemble{"vd_btb_assemble_kernel"};
 inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
                              const Buffer<vd_float4>& d, VdSolverWeights w,
                              Buffer<vd_float4>& q)> kSystemApplyCached{"vd_system_apply_cached_kernel"};
@@ -110,10 +115,13 @@ Status ApplySystem(Context& ctx, size_t m, const Buffer<int32_t>& list, const Bu
                    const Buffer<int32_t>& neighbours, const Buffer<VdCorrespondence>& cons,
                    const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
                    VdSolverWeights w, Buffer<vd_float4>& q);
-// B^T B as 27 3x3 blocks per point, built once per solve so each PCG iteration skips the constraints.
+// B^T B as 27 3x3 blocks per point, built once per solve so each PCG iteration skips the
+// constraints, with the data part of b and the Jacobi preconditioner (DataRhsAndDiagonal's
+// outputs): the cells' moments (VD_CELL_MOMENT_FLOATS per active point, scratch), then the points.
 Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start, VdSolverWeights w,
-                Buffer<float>& blocks, Buffer<int32_t>& nbr);
+                const Buffer<int32_t>& neighbours, const Buffer<VdCorrespondence>& cons,
+                const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
+                Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv);
 // q = A d from the blocks of BuildBtb.
 Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& blocks,
                          const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d, VdSolverWeights w,

@@ -1,0 +1,21 @@
+#pragma once
+// CPU reference of the cached B^T B build (kernels vd_cell_moments_kernel and
+// vd_btb_assemble_kernel): the shared per-item functions of shared/solver.h looped with OpenMP.
+// The test oracle of the kernels.
+#include <vector>
+
+#include "shared/solver.h"
+
+namespace vd::cpu {
+
+// Moments of every cell with constraints (VD_CELL_MOMENT_FLOATS floats per active point; cells
+// without constraints are left as given), for m active points and constraints sorted by cell.
+void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, const vd_uint* cell_start, int m,
+                 float* moments);
+// Per point: 27 blocks (VD_BTB_FLOATS floats) and neighbour indices, the data right-hand side
+// and the inverse diagonal block, from the moments.
+void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const vd_uint* cell_start,
+                 const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr, vd_float4* data_rhs,
+                 VdMat3* diag_inv);
+
+}  // namespace vd::cpu

@@ -1,0 +1,186 @@
+// The cached B^T B build of the position step (shared/solver.h: per-cell moments, then per-point
+// assembly) on the device against its CPU reference, and both against an independent assembly
+// that walks every constraint's 8 x 8 corner pairs in double precision.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "cpu_ref/cpu_ref.h"
+#include "cpu_ref/solver_ref.h"
+#include "ocl/solver_ocl.h"
+#include "sphere_volume.h"
+#include "test_scenes.h"
+
+namespace vd {
+namespace {
+
+using test::AllClose;
+using test::Flatten;
+using test::FromDevice;
+using test::ToDevice;
+
+struct Problem {
+  VdVolume vol{};
+  cpu::ActiveSet active;
+  // Constraints sorted by cell and the cells' ranges (m + 1 entries).
+  std::vector<VdCorrespondence> cons;
+  std::vector<vd_uint> cell_start;
+};
+
+// A sphere of 9.3 voxels; three constraints per marching-cubes vertex (the vertex and two points
+// nudged inside its cell), every seventh with weight 0 (not a constraint).
+Problem MakeProblem() {
+  Problem p;
+  const test::AnalyticVolume sphere = test::MakeSphereVolume(
+      test::TestVolume(30, 28, 26, 0.01f, VD_F4(-0.15f, -0.14f, 0.87f, 1.f)), 0.002f, -0.003f, 1.001f, 0.093f);
+  p.vol = sphere.vol;
+  const cpu::McMesh mc = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), p.vol);
+  p.active = cpu::BuildActiveSet(mc.codes.data(), p.vol);
+  std::vector<VdCorrespondence> raw;
+  for (size_t i = 0; i < mc.positions_grid.size(); ++i) {
+    for (int r = 0; r < 3; ++r) {
+      VdCorrespondence c;
+      const vd_float4 g = mc.positions_grid[i];
+      const float cx = std::floor(g.x), cy = std::floor(g.y), cz = std::floor(g.z);
+      const float s = 0.37f * float(r);
+      c.canonical = VD_F4(cx + std::fmod(g.x - cx + s, 1.f), cy + std::fmod(g.y - cy + 0.5f * s, 1.f),
+                          cz + std::fmod(g.z - cz + 0.25f * s, 1.f), (raw.size() % 7 == 0) ? 0.f : 0.2f + 0.15f * float(i % 5));
+      c.normal = mc.normals[i];
+      c.normal.w = 0.f;
+      const float shift = 0.002f + 0.001f * std::sin(float(i));
+      c.target = VD_F4(p.vol.origin.x + 0.01f * g.x, p.vol.origin.y + 0.01f * g.y, p.vol.origin.z + 0.01f * g.z, 0.f) +
+                 c.normal * shift;
+      c.target.w = 0.f;
+      raw.push_back(c);
+    }
+  }
+  // Counting sort by cell, as the device's count/scan/scatter does (order within a cell aside).
+  const int m = int(p.active.list.size());
+  std::vector<std::vector<VdCorrespondence>> by_cell(m);
+  for (const auto& c : raw) {
+    const int kc = vd_constraint_cell(c, p.active.compact.data(), p.vol);
+    if (kc >= 0) by_cell[kc].push_back(c);
+  }
+  p.cell_start.assign(m + 1, 0u);
+  for (int k = 0; k < m; ++k) {
+    p.cell_start[k + 1] = p.cell_start[k] + vd_uint(by_cell[k].size());
+    p.cons.insert(p.cons.end(), by_cell[k].begin(), by_cell[k].end());
+  }
+  return p;
+}
+
+TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
+  VD_REQUIRE_OCL(ctx);
+  const Problem p = MakeProblem();
+  const int m = int(p.active.list.size());
+  ASSERT_GT(m, 2000);
+  ASSERT_GT(p.cons.size(), 2000u);
+  VdSolverWeights w{};
+  w.w_dense = 1.3f;
+  w.w_reg = 2.f;
+  w.damping = 2e-4f;
+
+  // Device.
+  auto d_list = ToDevice(ctx, p.active.list);
+  auto d_compact = ToDevice(ctx, p.active.compact);
+  auto d_nb = ToDevice(ctx, p.active.neighbours);
+  auto d_cons = ToDevice(ctx, p.cons);
+  auto d_start = ToDevice(ctx, p.cell_start);
+  auto d_moments = ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * m);
+  auto d_blocks = ctx->Alloc<float>(size_t(VD_BTB_FLOATS) * m);
+  auto d_nbr = ctx->Alloc<int32_t>(size_t(VD_BTB_BLOCKS) * m);
+  auto d_rhs = ctx->Alloc<vd_float4>(m);
+  auto d_inv = ctx->Alloc<VdMat3>(m);
+  ASSERT_TRUE(d_moments.ok() && d_blocks.ok() && d_nbr.ok() && d_rhs.ok() && d_inv.ok());
+  ASSERT_TRUE(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_cons, d_start, w, *d_moments, *d_blocks,
+                            *d_nbr, *d_rhs, *d_inv)
+                  .ok());
+  const auto blocks = FromDevice(ctx, *d_blocks, size_t(VD_BTB_FLOATS) * m);
+  const auto nbr = FromDevice(ctx, *d_nbr, size_t(VD_BTB_BLOCKS) * m);
+  const auto rhs = FromDevice(ctx, *d_rhs, m);
+  const auto inv = FromDevice(ctx, *d_inv, m);
+
+  // CPU reference: the same per-item functions.
+  std::vector<float> moments(size_t(VD_CELL_MOMENT_FLOATS) * m, 0.f), blocks_ref(size_t(VD_BTB_FLOATS) * m);
+  std::vector<int> nbr_ref(size_t(VD_BTB_BLOCKS) * m);
+  std::vector<vd_float4> rhs_ref(m);
+  std::vector<VdMat3> inv_ref(m);
+  cpu::CellMoments(p.active.list.data(), p.vol, p.cons.data(), p.cell_start.data(), m, moments.data());
+  cpu::BtbAssemble(p.active.list.data(), p.active.compact.data(), p.vol, p.active.neighbours.data(),
+                   p.cell_start.data(), moments.data(), w, m, blocks_ref.data(), nbr_ref.data(), rhs_ref.data(),
+                   inv_ref.data());
+  EXPECT_EQ(nbr, nbr_ref);
+  EXPECT_TRUE(AllClose(blocks, blocks_ref, 1e-6f, 1e-5f));
+  EXPECT_TRUE(AllClose(Flatten(rhs), Flatten(rhs_ref), 1e-7f, 1e-5f));
+  std::vector<float> inv_f, inv_ref_f;
+  for (int k = 0; k < m; ++k)
+    for (int a = 0; a < 9; ++a) {
+      inv_f.push_back(inv[k].m[a]);
+      inv_ref_f.push_back(inv_ref[k].m[a]);
+    }
+  EXPECT_TRUE(AllClose(inv_f, inv_ref_f, 1e-6f, 1e-5f));
+
+  // Independent: every constraint adds w_d w alpha_o alpha_q n n^T to the block (idx_o, idx_q)
+  // and w_d w alpha_o (n . p) n to b_o.
+  std::map<std::pair<int, int>, Eigen::Matrix3d> ref_blocks;
+  std::vector<Eigen::Vector3d> ref_rhs(m, Eigen::Vector3d::Zero());
+  for (const auto& c : p.cons) {
+    int idx[8];
+    float al[8];
+    ASSERT_TRUE(vd_cell_corners(c.canonical, p.active.compact.data(), p.vol, idx, al));
+    const Eigen::Vector3d n(c.normal.x, c.normal.y, c.normal.z), t(c.target.x, c.target.y, c.target.z);
+    const double f[3] = {c.canonical.x - std::floor(c.canonical.x), c.canonical.y - std::floor(c.canonical.y),
+                         c.canonical.z - std::floor(c.canonical.z)};
+    for (int o = 0; o < 8; ++o) {
+      const double ao = (o & 1 ? f[0] : 1 - f[0]) * (o & 2 ? f[1] : 1 - f[1]) * (o & 4 ? f[2] : 1 - f[2]);
+      ref_rhs[idx[o]] += double(w.w_dense) * c.canonical.w * ao * n.dot(t) * n;
+      for (int q = 0; q < 8; ++q) {
+        const double aq = (q & 1 ? f[0] : 1 - f[0]) * (q & 2 ? f[1] : 1 - f[1]) * (q & 4 ? f[2] : 1 - f[2]);
+        auto it = ref_blocks.try_emplace({idx[o], idx[q]}, Eigen::Matrix3d::Zero()).first;
+        it->second += double(w.w_dense) * c.canonical.w * ao * aq * n * n.transpose();
+      }
+    }
+  }
+  double worst_block = 0, largest_block = 0, worst_rhs = 0, worst_inv = 0;
+  size_t nonzero_blocks = 0;
+  for (int k = 0; k < m; ++k) {
+    int degree = 0;
+    for (int j = 0; j < 6; ++j) degree += p.active.neighbours[6 * k + j] >= 0;
+    for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
+      const int j = nbr[VD_BTB_BLOCKS * k + o];
+      const float* b = &blocks[size_t(VD_BTB_FLOATS) * k + 6 * o];
+      Eigen::Matrix3d got;
+      got << b[0], b[1], b[2], b[1], b[3], b[4], b[2], b[4], b[5];
+      Eigen::Matrix3d want = Eigen::Matrix3d::Zero();
+      if (j >= 0) {
+        auto it = ref_blocks.find({k, j});
+        if (it != ref_blocks.end()) want = it->second;
+      }
+      nonzero_blocks += want.norm() > 0;
+      worst_block = std::max(worst_block, (got - want).cwiseAbs().maxCoeff());
+      largest_block = std::max(largest_block, want.cwiseAbs().maxCoeff());
+      if (o == 13) {
+        const Eigen::Matrix3d diag = want + (2.0 * w.w_reg * degree + w.damping) * Eigen::Matrix3d::Identity();
+        const Eigen::Matrix3d want_inv = diag.inverse();
+        Eigen::Matrix3d got_inv;
+        for (int a = 0; a < 9; ++a) got_inv(a / 3, a % 3) = inv[k].m[a];
+        worst_inv = std::max(worst_inv, (got_inv - want_inv).cwiseAbs().maxCoeff() / want_inv.cwiseAbs().maxCoeff());
+      }
+    }
+    const Eigen::Vector3d got_rhs(rhs[k].x, rhs[k].y, rhs[k].z);
+    worst_rhs = std::max(worst_rhs, (got_rhs - ref_rhs[k]).cwiseAbs().maxCoeff());
+  }
+  std::printf("%d points, %zu constraints, %zu non-zero blocks; worst block error %.3g (largest %.3g), rhs %.3g, "
+              "relative inverse diagonal %.3g\n",
+              m, p.cons.size(), nonzero_blocks, worst_block, largest_block, worst_rhs, worst_inv);
+  EXPECT_GT(nonzero_blocks, size_t(8) * m);
+  EXPECT_LT(worst_block, 2e-6 * largest_block);
+  EXPECT_LT(worst_rhs, 1e-6);
+  EXPECT_LT(worst_inv, 1e-5);
+}
+
+}  // namespace
+}  // namespace vd
