@@ -346,8 +346,10 @@ class Node::Impl {
     message_ = result->tracking_ok ? engine_->DeviceDescription() : result->tracking_message;
     dense_ = result->dense_correspondences;
     sparse_ = result->sparse_matches;
-    energy_initial_ = float(result->energy_initial);
-    energy_final_ = float(result->energy_final);
+    if (result->energies_evaluated) {
+      energy_initial_ = float(result->energy_initial);
+      energy_final_ = float(result->energy_final);
+    }
     active_voxels_ = result->active_voxels;
     KeepMeshes(*result, frame.seq);
     lock.unlock();

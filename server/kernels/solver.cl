@@ -131,15 +131,6 @@ __kernel void vd_axpy4(float a, __global const float4* x, __global float4* y, in
   y[k] = v;
 }
 
-/* y = x + a * y (xyz only). */
-__kernel void vd_xpay4(float a, __global const float4* x, __global float4* y, int vd_items) {
-  if ((int)get_global_id(0) >= vd_items) return;
-  int k = get_global_id(0);
-  float4 v = x[k] + a * y[k];
-  v.w = 0.0f;
-  y[k] = v;
-}
-
 /* y = b - y (xyz only): the initial residual from b and A x0. */
 __kernel void vd_sub_from4(__global const float4* b, __global float4* y, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
@@ -157,6 +148,44 @@ __kernel void vd_dot4_partial(__global const float4* a, __global const float4* b
   float s = 0.0f;
   for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k) s += vd_dot3(a[k], b[k]);
   partials[g] = s;
+}
+
+/* Chunked partial sums of two dot products sharing a: (a.b, a.c) per chunk, interleaved. */
+__kernel void vd_dot4x2_partial(__global const float4* a, __global const float4* b, __global const float4* c, int n,
+                                int chunk, __global float* partials, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int g = get_global_id(0);
+  float s = 0.0f, t = 0.0f;
+  for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k) {
+    s += vd_dot3(a[k], b[k]);
+    t += vd_dot3(a[k], c[k]);
+  }
+  partials[2 * g] = s;
+  partials[2 * g + 1] = t;
+}
+
+/* One item: the PCG scalars from partial sums (shared/solver.h, VD_PCG_SET_*). */
+__kernel void vd_pcg_scalars_kernel(__global const float* partials, int groups, int mode, float tolerance,
+                                    __global float* scal, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_pcg_scalars(partials, groups, mode, tolerance, scal);
+}
+
+__kernel void vd_pcg_update_kernel(__global const float* scal, __global const float4* p, __global const float4* q,
+                                   __global const VdMat3* diag_inv, __global float4* x, __global float4* r,
+                                   __global float4* z, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_pcg_update(get_global_id(0), scal, p, q, diag_inv, x, r, z);
+}
+
+/* p = z + beta p (xyz; beta from scal). */
+__kernel void vd_pcg_direction(__global const float* scal, __global const float4* z, __global float4* p,
+                               int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  vd_float4 v = z[k] + p[k] * scal[VD_PCG_BETA];
+  v.w = 0.0f;
+  p[k] = v;
 }
 
 /* Energy partial sums: dense term per chunk of constraints, ARAP per chunk of points. */

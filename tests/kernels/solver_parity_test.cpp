@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <random>
 
 #include "cpu_ref/cpu_ref.h"
 #include "cpu_ref/solver_ref.h"
@@ -180,6 +181,91 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   EXPECT_LT(worst_block, 2e-6 * largest_block);
   EXPECT_LT(worst_rhs, 1e-6);
   EXPECT_LT(worst_inv, 1e-5);
+}
+
+// One PCG iteration with its scalars on the device (dot partials, vd_pcg_scalars, update,
+// direction) against the same iteration in double precision on the host.
+TEST(SolverParityTest, PcgScalarsUpdateAndDirectionMatchAHostIteration) {
+  VD_REQUIRE_OCL(ctx);
+  const int n = 5000, chunk = 256, groups = (n + chunk - 1) / chunk;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> uni(-1.f, 1.f);
+  std::vector<vd_float4> b(n), x(n), r(n), p(n), q(n);
+  std::vector<VdMat3> dinv(n);
+  for (int k = 0; k < n; ++k) {
+    b[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.f);
+    x[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.25f);
+    r[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.f);
+    p[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.f);
+    q[k] = p[k] * 2.f + VD_F4(0.1f * uni(rng), 0.1f * uni(rng), 0.1f * uni(rng), 0.f);
+    for (int a = 0; a < 9; ++a) dinv[k].m[a] = (a % 4 == 0 ? 0.5f : 0.f) + 0.05f * uni(rng);
+  }
+  std::vector<vd_float4> z(n);
+  for (int k = 0; k < n; ++k) z[k] = vd_mat3_apply(dinv[k], r[k]);
+  const float tol = 0.1f;
+  auto d_b = ToDevice(ctx, b), d_x = ToDevice(ctx, x), d_r = ToDevice(ctx, r), d_p = ToDevice(ctx, p),
+       d_q = ToDevice(ctx, q), d_z = ToDevice(ctx, z);
+  auto d_inv = ToDevice(ctx, dinv);
+  auto d_part = ctx->Alloc<float>(2 * groups);
+  auto d_scal = ctx->Alloc<float>(VD_PCG_SCALARS);
+  ASSERT_TRUE(d_part.ok() && d_scal.ok());
+  ASSERT_TRUE(ocl::DotPartials(*ctx, groups, d_b, d_b, n, chunk, *d_part).ok());
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_STOP, tol, *d_scal).ok());
+  ASSERT_TRUE(ocl::DotPartials2(*ctx, groups, d_r, d_z, d_r, n, chunk, *d_part).ok());
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_RZ_RR, tol, *d_scal).ok());
+  const auto s0 = FromDevice(ctx, *d_scal, VD_PCG_SCALARS);
+  ASSERT_TRUE(ocl::DotPartials(*ctx, groups, d_p, d_q, n, chunk, *d_part).ok());
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_ALPHA, tol, *d_scal).ok());
+  ASSERT_TRUE(ocl::PcgUpdate(*ctx, n, *d_scal, d_p, d_q, d_inv, d_x, d_r, d_z).ok());
+  ASSERT_TRUE(ocl::DotPartials2(*ctx, groups, d_r, d_z, d_r, n, chunk, *d_part).ok());
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_BETA, tol, *d_scal).ok());
+  ASSERT_TRUE(ocl::PcgDirection(*ctx, n, *d_scal, d_z, d_p).ok());
+  const auto s1 = FromDevice(ctx, *d_scal, VD_PCG_SCALARS);
+
+  // Host, double precision.
+  auto dot = [&](const std::vector<vd_float4>& u, const std::vector<vd_float4>& v) {
+    double acc = 0;
+    for (int k = 0; k < n; ++k) acc += double(u[k].x) * v[k].x + double(u[k].y) * v[k].y + double(u[k].z) * v[k].z;
+    return acc;
+  };
+  const double bb = dot(b, b), rz = dot(r, z), rr = dot(r, r), pq = dot(p, q);
+  EXPECT_NEAR(s0[VD_PCG_STOP], tol * tol * bb, 1e-5 * tol * tol * bb);
+  EXPECT_NEAR(s0[VD_PCG_RZ], rz, 1e-5 * std::fabs(rz) + 1e-6);
+  EXPECT_NEAR(s0[VD_PCG_RR], rr, 1e-5 * rr);
+  EXPECT_EQ(s0[VD_PCG_CONVERGED], 0.f);
+  const double alpha = rz / pq;
+  std::vector<vd_float4> x1(n), r1(n), z1(n), p1(n);
+  for (int k = 0; k < n; ++k) {
+    x1[k] = x[k] + p[k] * float(alpha);
+    x1[k].w = x[k].w;
+    r1[k] = r[k] - q[k] * float(alpha);
+    r1[k].w = 0.f;
+    z1[k] = vd_mat3_apply(dinv[k], r1[k]);
+  }
+  const double rz1 = dot(r1, z1), rr1 = dot(r1, r1), beta = rz1 / rz;
+  for (int k = 0; k < n; ++k) {
+    p1[k] = z1[k] + p[k] * float(beta);
+    p1[k].w = 0.f;
+  }
+  EXPECT_NEAR(s1[VD_PCG_ALPHA], alpha, 1e-5 * std::fabs(alpha));
+  EXPECT_NEAR(s1[VD_PCG_BETA], beta, 1e-4 * std::fabs(beta));
+  EXPECT_NEAR(s1[VD_PCG_RR], rr1, 1e-4 * rr1);
+  // rr1 is above tol^2 b.b here (checked), so the iteration has not converged.
+  ASSERT_GT(rr1, tol * tol * bb);
+  EXPECT_EQ(s1[VD_PCG_CONVERGED], 0.f);
+  EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_x, n)), Flatten(x1), 1e-6f, 1e-5f));
+  EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_r, n)), Flatten(r1), 1e-6f, 1e-5f));
+  EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_z, n)), Flatten(z1), 1e-6f, 1e-5f));
+  EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_p, n)), Flatten(p1), 1e-5f, 1e-4f));
+
+  // Converged: alpha and beta are 0 from then on and x stays.
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_STOP, 10.f, *d_scal).ok());
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_RZ_RR, 10.f, *d_scal).ok());
+  ASSERT_TRUE(ocl::DotPartials(*ctx, groups, d_p, d_q, n, chunk, *d_part).ok());
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_ALPHA, 10.f, *d_scal).ok());
+  const auto s2 = FromDevice(ctx, *d_scal, VD_PCG_SCALARS);
+  EXPECT_EQ(s2[VD_PCG_CONVERGED], 1.f);
+  EXPECT_EQ(s2[VD_PCG_ALPHA], 0.f);
 }
 
 }  // namespace

@@ -346,6 +346,76 @@ VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VdVolume vol
   return b;
 }
 
+/* PCG with its scalars on the device (no host round trip per dot product): the step sizes live
+ * in a small buffer of VD_PCG_SCALARS floats that single-item kernels update from partial sums,
+ * and the vector kernels read. Once converged (r.r <= stop, or p.q <= 0), alpha and beta are 0 and
+ * further iterations leave x unchanged; the host reads the buffer once per iteration to stop. */
+#define VD_PCG_RZ 0
+#define VD_PCG_RR 1
+#define VD_PCG_ALPHA 2
+#define VD_PCG_BETA 3
+#define VD_PCG_STOP 4
+#define VD_PCG_CONVERGED 5
+#define VD_PCG_SCALARS 8
+/* What vd_pcg_scalars does with its partial sums. */
+#define VD_PCG_SET_STOP 0   /* partials of b.b: stop = tol^2 max(b.b, 1e-30), not converged */
+#define VD_PCG_SET_RZ_RR 1  /* pairs (r.z, r.r): start of the iterations */
+#define VD_PCG_SET_ALPHA 2  /* partials of p.q: alpha = r.z / p.q */
+#define VD_PCG_SET_BETA 3   /* pairs (r.z, r.r) after the update: beta = r.z_new / r.z */
+
+/* Compensated sum of n floats at stride `stride` from `first`. */
+VD_INLINE float vd_sum_partials(VD_GLOBAL const float* partials, int n, int first, int stride) {
+  float s = 0.0f, c = 0.0f;
+  for (int i = 0; i < n; ++i) {
+    float y = partials[first + i * stride] - c;
+    float t = s + y;
+    c = (t - s) - y;
+    s = t;
+  }
+  return s;
+}
+
+/* The single item of vd_pcg_scalars: `groups` partial sums (pairs for the two-dot modes). */
+VD_INLINE void vd_pcg_scalars(VD_GLOBAL const float* partials, int groups, int mode, float tolerance,
+                              VD_GLOBAL float* scal) {
+  if (mode == VD_PCG_SET_STOP) {
+    float bb = vd_sum_partials(partials, groups, 0, 1);
+    scal[VD_PCG_STOP] = tolerance * tolerance * fmax(bb, 1e-30f);
+    scal[VD_PCG_CONVERGED] = 0.0f;
+    scal[VD_PCG_ALPHA] = 0.0f;
+    scal[VD_PCG_BETA] = 0.0f;
+  } else if (mode == VD_PCG_SET_ALPHA) {
+    float pq = vd_sum_partials(partials, groups, 0, 1);
+    int go = scal[VD_PCG_CONVERGED] == 0.0f && pq > 0.0f;
+    scal[VD_PCG_ALPHA] = go ? scal[VD_PCG_RZ] / pq : 0.0f;
+    if (!go) scal[VD_PCG_CONVERGED] = 1.0f;
+  } else {
+    float rz = vd_sum_partials(partials, groups, 0, 2);
+    float rr = vd_sum_partials(partials, groups, 1, 2);
+    int done = scal[VD_PCG_CONVERGED] != 0.0f;
+    if (mode == VD_PCG_SET_BETA) scal[VD_PCG_BETA] = (!done && scal[VD_PCG_RZ] != 0.0f) ? rz / scal[VD_PCG_RZ] : 0.0f;
+    if (!done) {
+      scal[VD_PCG_RZ] = rz;
+      scal[VD_PCG_RR] = rr;
+      if (rr <= scal[VD_PCG_STOP]) scal[VD_PCG_CONVERGED] = 1.0f;
+    }
+  }
+}
+
+/* x += alpha p, r -= alpha q, z = M^-1 r at point k (xyz; alpha from scal). */
+VD_INLINE void vd_pcg_update(int k, VD_GLOBAL const float* scal, VD_GLOBAL const vd_float4* p,
+                             VD_GLOBAL const vd_float4* q, VD_GLOBAL const VdMat3* diag_inv, VD_GLOBAL vd_float4* x,
+                             VD_GLOBAL vd_float4* r, VD_GLOBAL vd_float4* z) {
+  float a = scal[VD_PCG_ALPHA];
+  vd_float4 xk = x[k] + p[k] * a;
+  xk.w = x[k].w;
+  x[k] = xk;
+  vd_float4 rk = r[k] - q[k] * a;
+  rk.w = 0.0f;
+  r[k] = rk;
+  z[k] = vd_mat3_apply(diag_inv[k], rk);
+}
+
 /* Energy terms (paper eqs. 2 and 4) for tests and the status: one constraint's weighted squared
  * point-to-plane residual, and one point's ARAP sum over its neighbours. */
 VD_INLINE float vd_constraint_energy(VdCorrespondence c, VD_GLOBAL const int* compact, VdVolume vol,

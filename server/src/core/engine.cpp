@@ -513,10 +513,14 @@ Status Engine::NonRigid(FrameResult* result) {
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
     VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
     VD_RETURN_IF_ERROR(ops_.Correspondences(live_, vmap_[0], nmap_[0], mesh_, cp, corr_));
-    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, total));
+    const bool energies = nonrigid_solves_++ % params_.solver.energy_interval == 0;
+    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, total, energies));
     VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
-    if (outer == 0) result->energy_initial = summary.energy_initial;
-    result->energy_final = summary.energy_final;
+    if (energies) {
+      if (!result->energies_evaluated) result->energy_initial = summary.energy_initial;
+      result->energy_final = summary.energy_final;
+      result->energies_evaluated = true;
+    }
     result->dense_correspondences = summary.constraints;
   }
   return ctx_->Finish();

@@ -131,6 +131,8 @@ struct FrameResult {
   int dense_correspondences = 0;
   double energy_initial = 0.0;
   double energy_final = 0.0;
+  // Whether this frame evaluated the energies (every SolverParams::energy_interval solves).
+  bool energies_evaluated = false;
   // Sparse features of this frame: keypoints detected, lifted into the canonical pose, matches
   // used as E_sparse constraints, and the detection + description time (off the frame's thread
   // when prefetched).
@@ -215,6 +217,8 @@ class Engine {
   // This frame's matches as the pose step takes them.
   std::vector<PosePair> pose_pairs_;
   int64_t frames_seen_ = 0;
+  // Non-rigid solves so far: the energies are evaluated on every energy_interval-th.
+  int64_t nonrigid_solves_ = 0;
   Eigen::Matrix4d pose_ = Eigen::Matrix4d::Identity();
   // Pose at which mesh_ was last rendered into model_.
   Eigen::Matrix4d model_pose_ = Eigen::Matrix4d::Identity();

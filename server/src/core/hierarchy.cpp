@@ -47,13 +47,16 @@ Status HierarchicalSolver::Prepare(const DeviceVolume& v, const DeviceActiveSet&
 }
 
 StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
-                                                  const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n) {
+                                                  const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n,
+                                                  bool energies) {
   const SolverParams& params = params_;
   if (!fine_active_) return FailedPrecondition("HierarchicalSolver::Solve before Prepare");
   ocl::Context& ctx = ops_->ctx();
   VD_RETURN_IF_ERROR(fine_.Setup(v, *fine_active_, per_pixel, n));
   SolverSummary summary;
-  VD_ASSIGN_OR_RETURN(summary.energy_initial, fine_.Energy());
+  if (energies) {
+    VD_ASSIGN_OR_RETURN(summary.energy_initial, fine_.Energy());
+  }
 
   const size_t nc = fine_.num_constraints();
   const bool coarse = !levels_.empty() && params.coarse_flip_flop_iterations > 0 && nc > 0;
@@ -88,7 +91,9 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
   summary.constraints = fs.constraints;
   summary.active_points = fs.active_points;
   summary.pcg_iterations += fs.pcg_iterations;
-  VD_ASSIGN_OR_RETURN(summary.energy_final, fine_.Energy());
+  if (energies) {
+    VD_ASSIGN_OR_RETURN(summary.energy_final, fine_.Energy());
+  }
   return summary;
 }
 

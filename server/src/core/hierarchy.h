@@ -20,8 +20,9 @@ class HierarchicalSolver {
   // frame only).
   Status Prepare(const DeviceVolume& v, const DeviceActiveSet& fine);
   // One non-linear solve from the field's current state: coarse levels first, then the fine level.
-  // Energies are the fine level's E_total before and after.
-  StatusOr<SolverSummary> Solve(const DeviceVolume& v, const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n);
+  // With `energies`, the summary has the fine level's E_total before and after (else 0).
+  StatusOr<SolverSummary> Solve(const DeviceVolume& v, const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n,
+                                bool energies = true);
   Status WriteBack(DeviceVolume& v) { return fine_.WriteBack(v); }
 
   int num_levels() const { return 1 + int(levels_.size()); }

@@ -26,6 +26,8 @@ void SolverParams::Bind(FlagParser* f) {
   f->Add("pcg-tolerance", &pcg_tolerance, "Relative residual at which PCG stops early");
   f->Add("rotation-iterations", &rotation_iterations,
          "Warm-started refinement steps per rotation step (0 = exact SVD each time)");
+  f->Add("energy-interval", &energy_interval,
+         "Solves between evaluations of the energy before and after the solve (status diagnostics; 1 = every frame)");
   f->AddNegation("no-btb-cache-coarse", &cache_btb_coarse,
                  "Apply B^T B from the constraints on the coarse levels instead of caching its blocks");
   f->AddNegation("no-btb-cache-fine", &cache_btb_fine,
@@ -42,6 +44,8 @@ Status SolverParams::Validate() const {
   if (!(pcg_tolerance > 0.f && pcg_tolerance < 1.f)) return ParamOutOfBounds("SolverParams", "pcg_tolerance", pcg_tolerance, "0 < tol < 1");
   if (!(rotation_iterations >= 0 && rotation_iterations <= 50))
     return ParamOutOfBounds("SolverParams", "rotation_iterations", rotation_iterations, "0 <= n <= 50");
+  if (!(energy_interval >= 1 && energy_interval <= 100000))
+    return ParamOutOfBounds("SolverParams", "energy_interval", energy_interval, "1 <= n <= 100000");
   if (!(levels >= 1 && levels <= 5)) return ParamOutOfBounds("SolverParams", "levels", levels, "1 <= levels <= 5");
   if (!(coarse_flip_flop_iterations >= 0 && coarse_flip_flop_iterations <= 100))
     return ParamOutOfBounds("SolverParams", "coarse_flip_flop_iterations", coarse_flip_flop_iterations, "0 <= n <= 100");
@@ -149,24 +153,28 @@ StatusOr<int> DeviceSolver::PositionStep() {
   VD_RETURN_IF_ERROR(ocl::SubFrom(ctx, m_, b_, r_));
   VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, z_));
   VD_RETURN_IF_ERROR(ctx.Copy(z_, p_, m_));
-  VD_ASSIGN_OR_RETURN(double rz, Dot(r_, z_));
-  VD_ASSIGN_OR_RETURN(double bb, Dot(b_, b_));
-  const double stop = double(params_.pcg_tolerance) * params_.pcg_tolerance * std::max(bb, 1e-30);
+
+  // Scalars on the device: one host round trip per iteration (the convergence test), not four.
+  const size_t groups = std::max<size_t>((m_ + kChunk - 1) / kChunk, 1);
+  VD_RETURN_IF_ERROR(ctx.Reserve(&partials_, 2 * groups));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&scal_, VD_PCG_SCALARS));
+  const float tol = params_.pcg_tolerance;
+  VD_RETURN_IF_ERROR(ocl::DotPartials(ctx, groups, b_, b_, int(m_), kChunk, partials_));
+  VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_STOP, tol, scal_));
+  VD_RETURN_IF_ERROR(ocl::DotPartials2(ctx, groups, r_, z_, r_, int(m_), kChunk, partials_));
+  VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_RZ_RR, tol, scal_));
+  float scal[VD_PCG_SCALARS];
   int it = 0;
   for (; it < params_.pcg_iterations; ++it) {
-    VD_ASSIGN_OR_RETURN(double rr, Dot(r_, r_));
-    if (rr <= stop) break;
+    VD_RETURN_IF_ERROR(ctx.Download(scal_, scal, VD_PCG_SCALARS));
+    if (scal[VD_PCG_CONVERGED] != 0.f) break;
     VD_RETURN_IF_ERROR(Apply(p_, q_));
-    VD_ASSIGN_OR_RETURN(double pq, Dot(p_, q_));
-    if (!(pq > 0.0)) break;
-    const float alpha = float(rz / pq);
-    VD_RETURN_IF_ERROR(ocl::Axpy(ctx, m_, alpha, p_, x_));
-    VD_RETURN_IF_ERROR(ocl::Axpy(ctx, m_, -alpha, q_, r_));
-    VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, z_));
-    VD_ASSIGN_OR_RETURN(double rz_new, Dot(r_, z_));
-    const float beta = float(rz_new / rz);
-    rz = rz_new;
-    VD_RETURN_IF_ERROR(ocl::Xpay(ctx, m_, beta, z_, p_));
+    VD_RETURN_IF_ERROR(ocl::DotPartials(ctx, groups, p_, q_, int(m_), kChunk, partials_));
+    VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_ALPHA, tol, scal_));
+    VD_RETURN_IF_ERROR(ocl::PcgUpdate(ctx, m_, scal_, p_, q_, diag_inv_, x_, r_, z_));
+    VD_RETURN_IF_ERROR(ocl::DotPartials2(ctx, groups, r_, z_, r_, int(m_), kChunk, partials_));
+    VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_BETA, tol, scal_));
+    VD_RETURN_IF_ERROR(ocl::PcgDirection(ctx, m_, scal_, z_, p_));
   }
   return it;
 }

@@ -24,7 +24,8 @@ struct SolverParams {
   // Levels of the nested coarse-to-fine hierarchy (section 7.2): 1 = the fine grid only; level l
   // has 2^l times the voxel spacing. Coarse levels run coarse_flip_flop_iterations each.
   int levels = 3;
-  int coarse_flip_flop_iterations = 4;
+  // 2 reach what 4 did on the tube, cloth and rigid scenes to the printed digit (docs/BENCHMARKS.md).
+  int coarse_flip_flop_iterations = 2;
   // Pre-compute and cache B^T B as 27 3x3 blocks per point before the PCG iterations (section
   // 7.1) instead of applying it from the constraints every iteration; per level kind.
   bool cache_btb_coarse = true;
@@ -37,6 +38,10 @@ struct SolverParams {
   // every time. The first
   // rotation step of a coarse level, whose rotations start at the identity, is always exact.
   int rotation_iterations = 2;
+  // Solves between evaluations of E_total before and after the solve (FrameResult, the status):
+  // diagnostics only, each evaluation walks every constraint and point twice (~5 % of a frame).
+  // 1 = every frame.
+  int energy_interval = 10;
   Status Validate() const;
   // Registers a flag for every field; the fields' values now are the defaults --help shows.
   void Bind(FlagParser* flags);
@@ -119,6 +124,8 @@ class DeviceSolver {
   ocl::Buffer<VdMat3> diag_inv_;
   ocl::Buffer<float> partials_;
   std::vector<float> partials_host_;
+  // The PCG scalars (shared/solver.h VD_PCG_*): step sizes kept on the device between kernels.
+  ocl::Buffer<float> scal_;
 };
 
 }  // namespace vd

@@ -79,9 +79,6 @@ Status Axpy(Context& ctx, size_t n, float a, const Buffer<vd_float4>& x, Buffer<
   return kAxpy4(ctx, n, a, x, y);
 }
 
-Status Xpay(Context& ctx, size_t n, float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y) {
-  return kXpay4(ctx, n, a, x, y);
-}
 
 Status SubFrom(Context& ctx, size_t n, const Buffer<vd_float4>& b, Buffer<vd_float4>& y) {
   return kSubFrom4(ctx, n, b, y);
@@ -102,6 +99,27 @@ Status ArapEnergyPartials(Context& ctx, size_t groups, const Buffer<int32_t>& li
                           VdVolume vol, const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot, int n, int chunk,
                           Buffer<float>& partials) {
   return kEnergyArapPartial(ctx, groups, list, neighbours, vol, x, rot, n, chunk, partials);
+}
+
+Status DotPartials2(Context& ctx, size_t groups, const Buffer<vd_float4>& a, const Buffer<vd_float4>& b,
+                    const Buffer<vd_float4>& c, int n, int chunk, Buffer<float>& partials) {
+  return kDot4x2Partial(ctx, groups, a, b, c, n, chunk, partials);
+}
+
+Status PcgScalars(Context& ctx, const Buffer<float>& partials, int groups, int mode, float tolerance,
+                  Buffer<float>& scal) {
+  return kPcgScalars(ctx, 1, partials, groups, mode, tolerance, scal);
+}
+
+Status PcgUpdate(Context& ctx, size_t n, const Buffer<float>& scal, const Buffer<vd_float4>& p,
+                 const Buffer<vd_float4>& q, const Buffer<VdMat3>& diag_inv, Buffer<vd_float4>& x,
+                 Buffer<vd_float4>& r, Buffer<vd_float4>& z) {
+  return kPcgUpdate(ctx, n, scal, p, q, diag_inv, x, r, z);
+}
+
+Status PcgDirection(Context& ctx, size_t n, const Buffer<float>& scal, const Buffer<vd_float4>& z,
+                    Buffer<vd_float4>& p) {
+  return kPcgDirection(ctx, n, scal, z, p);
 }
 
 }  // namespace vd::ocl

@@ -60,13 +60,22 @@ inline constexpr Kernel<void(const Buffer<VdMat3>& diag_inv, const Buffer<vd_flo
                              Buffer<vd_float4>& z)> kPcgPrecondition{"vd_pcg_precondition"};
 // y = a x + y (xyz).
 inline constexpr Kernel<void(float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y)> kAxpy4{"vd_axpy4"};
-// y = x + a y (xyz).
-inline constexpr Kernel<void(float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y)> kXpay4{"vd_xpay4"};
 // y = b - y (xyz).
 inline constexpr Kernel<void(const Buffer<vd_float4>& b, Buffer<vd_float4>& y)> kSubFrom4{"vd_sub_from4"};
 // One item per chunk of `chunk` points.
 inline constexpr Kernel<void(const Buffer<vd_float4>& a, const Buffer<vd_float4>& b, int n, int chunk,
                              Buffer<float>& partials)> kDot4Partial{"vd_dot4_partial"};
+// One item per chunk of `chunk` points: interleaved partials of (a.b, a.c).
+inline constexpr Kernel<void(const Buffer<vd_float4>& a, const Buffer<vd_float4>& b, const Buffer<vd_float4>& c, int n,
+                             int chunk, Buffer<float>& partials)> kDot4x2Partial{"vd_dot4x2_partial"};
+// One item.
+inline constexpr Kernel<void(const Buffer<float>& partials, int groups, int mode, float tolerance,
+                             Buffer<float>& scal)> kPcgScalars{"vd_pcg_scalars_kernel"};
+inline constexpr Kernel<void(const Buffer<float>& scal, const Buffer<vd_float4>& p, const Buffer<vd_float4>& q,
+                             const Buffer<VdMat3>& diag_inv, Buffer<vd_float4>& x, Buffer<vd_float4>& r,
+                             Buffer<vd_float4>& z)> kPcgUpdate{"vd_pcg_update_kernel"};
+inline constexpr Kernel<void(const Buffer<float>& scal, const Buffer<vd_float4>& z,
+                             Buffer<vd_float4>& p)> kPcgDirection{"vd_pcg_direction"};
 // One item per chunk of `chunk` constraints.
 inline constexpr Kernel<void(const Buffer<VdCorrespondence>& cons, int n, int chunk, const Buffer<int32_t>& compact,
                              VdVolume vol, const Buffer<vd_float4>& x,
@@ -131,13 +140,25 @@ Status Precondition(Context& ctx, size_t n, const Buffer<VdMat3>& diag_inv, cons
                     Buffer<vd_float4>& z);
 // y = a x + y.
 Status Axpy(Context& ctx, size_t n, float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y);
-// y = x + a y (the new search direction).
-Status Xpay(Context& ctx, size_t n, float a, const Buffer<vd_float4>& x, Buffer<vd_float4>& y);
 // y = b - y (the initial residual from A x).
 Status SubFrom(Context& ctx, size_t n, const Buffer<vd_float4>& b, Buffer<vd_float4>& y);
 // a . b over n points as partial sums over `groups` chunks of `chunk` (summed on the host, in double).
 Status DotPartials(Context& ctx, size_t groups, const Buffer<vd_float4>& a, const Buffer<vd_float4>& b, int n,
                    int chunk, Buffer<float>& partials);
+// Interleaved partial sums (a.b, a.c) over `groups` chunks, for the two dots after a PCG update.
+Status DotPartials2(Context& ctx, size_t groups, const Buffer<vd_float4>& a, const Buffer<vd_float4>& b,
+                    const Buffer<vd_float4>& c, int n, int chunk, Buffer<float>& partials);
+// The PCG scalars (shared/solver.h VD_PCG_*) from `groups` partial sums (pairs for the two-dot
+// modes), on the device: mode is one of VD_PCG_SET_*.
+Status PcgScalars(Context& ctx, const Buffer<float>& partials, int groups, int mode, float tolerance,
+                  Buffer<float>& scal);
+// x += alpha p, r -= alpha q, z = M^-1 r over n points, alpha from scal.
+Status PcgUpdate(Context& ctx, size_t n, const Buffer<float>& scal, const Buffer<vd_float4>& p,
+                 const Buffer<vd_float4>& q, const Buffer<VdMat3>& diag_inv, Buffer<vd_float4>& x,
+                 Buffer<vd_float4>& r, Buffer<vd_float4>& z);
+// p = z + beta p over n points, beta from scal.
+Status PcgDirection(Context& ctx, size_t n, const Buffer<float>& scal, const Buffer<vd_float4>& z,
+                    Buffer<vd_float4>& p);
 // E_dense over n sorted constraints, partial sums as for DotPartials.
 Status DenseEnergyPartials(Context& ctx, size_t groups, const Buffer<VdCorrespondence>& cons, int n, int chunk,
                            const Buffer<int32_t>& compact, VdVolume vol, const Buffer<vd_float4>& x,
