@@ -53,9 +53,23 @@ FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
     d.reason = "invalid_frame";
     return d;
   }
+  if (!Authenticate(*msg, &d)) return d;
   auto it = sources_.find(msg->source_id);
   bool restart = false;
-  if (it != sources_.end() && msg->seq <= it->second.seq) {
+  if (it != sources_.end() && msg->epoch != it->second.epoch) {
+    // Epochs are random, so only the capture time orders them: a signed frame of an epoch whose
+    // time is not newer than the source's last frame is a recording played back.
+    if (authenticated_frames() && msg->utime <= it->second.utime) {
+      ++counters_.rejected;
+      d.status = PermissionDenied("frame " + std::to_string(msg->seq) + " of '" + msg->source_id +
+                                  "' is from an earlier run (epoch " + std::to_string(msg->epoch) + ", capture time " +
+                                  std::to_string(msg->utime) + " us, not after " +
+                                  std::to_string(it->second.utime) + ")");
+      d.reason = "replayed";
+      return d;
+    }
+    restart = true;
+  } else if (it != sources_.end() && msg->seq <= it->second.seq) {
     if (msg->utime > it->second.utime) {
       // The sequence started again with a newer capture time: the client restarted.
       restart = true;
@@ -81,10 +95,21 @@ FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
     // Both are >= 0, so the difference cannot overflow; a jump beyond kMaxCountedGap is counted
     // as that many (the counter must not overflow on a hostile sequence number).
     counters_.lost += std::min<int64_t>(msg->seq - it->second.seq - 1, kMaxCountedGap);
-  sources_[msg->source_id] = SourceState{msg->seq, msg->utime};
+  sources_[msg->source_id] = SourceState{msg->epoch, msg->seq, msg->utime};
   d.verdict = FrameVerdict::kAccept;
   d.frame = std::move(frame).value();
   return d;
+}
+
+bool FrameGate::Authenticate(const vdeform::rgbd_frame_t& msg, FrameDecision* d) {
+  if (!authenticated_frames()) return true;
+  const std::string* key = options_.frame_keys.For(msg.source_id);
+  Status s = key ? VerifyFrame(*key, msg) : PermissionDenied("no frame key for source '" + msg.source_id + "'");
+  if (s.ok()) return true;
+  ++counters_.rejected;
+  d->reason = !key ? "no_frame_key" : msg.auth_size == 0 ? "unsigned" : "bad_signature";
+  d->status = s;
+  return false;
 }
 
 ControlDecision FrameGate::OnControl(const void* data, size_t size, int64_t now_us) {

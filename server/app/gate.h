@@ -21,6 +21,9 @@ struct GateOptions {
   std::vector<std::string> accept_sources;
   // HMAC key for control commands; empty = control is not authenticated (LCM has no auth).
   std::string control_key;
+  // Keys frames must be signed with (one for every source, or per source); empty = frames are
+  // not authenticated.
+  FrameKeys frame_keys;
   // Authenticated commands older or newer than this (vs the server's clock) are refused, which
   // with the strictly increasing utime check stops replays.
   int64_t control_max_skew_us = 30'000'000;
@@ -61,7 +64,8 @@ struct GateCounters {
   int64_t reordered = 0;
   // Sequence numbers skipped between accepted frames of a source (frames lost on the way).
   int64_t lost = 0;
-  // A source whose seq went back with a newer capture time: its client restarted.
+  // A source that came back with a new epoch, or its seq back with a newer capture time: its
+  // client restarted.
   int64_t source_restarts = 0;
   int64_t foreign = 0;
   int64_t control_accepted = 0;
@@ -80,12 +84,17 @@ class FrameGate {
 
   const GateCounters& counters() const { return counters_; }
   bool authenticated_control() const { return !options_.control_key.empty(); }
+  bool authenticated_frames() const { return !options_.frame_keys.empty(); }
 
  private:
   struct SourceState {
+    int64_t epoch = 0;
     int64_t seq = -1;
     int64_t utime = 0;
   };
+  // Refuses a frame that is not signed under its source's key: "no_frame_key", "unsigned" or
+  // "bad_signature" in d; true when it may go on.
+  bool Authenticate(const vdeform::rgbd_frame_t& msg, FrameDecision* d);
   GateOptions options_;
   GateCounters counters_;
   std::map<std::string, SourceState> sources_;

@@ -502,6 +502,12 @@ void Node::PrintSummary() const { impl_->PrintSummary(); }
 int RunNode(const ServerOptions& options) {
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
+  // Key files are arguments: a bad one is a usage error (exit 2) before anything starts.
+  auto gate = options.ToGateOptions();
+  if (!gate.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", gate.status().message().c_str());
+    return 2;
+  }
   const std::string url = ResolveLcmUrl(options.lcm_url);
   lcm::LCM lcm(url);
   if (!lcm.good()) {
@@ -510,11 +516,6 @@ int RunNode(const ServerOptions& options) {
                  url.c_str(), kLcmRouteHint);
     return 1;
   }
-  auto gate = options.ToGateOptions();
-  if (!gate.ok()) {
-    std::fprintf(stderr, "vdeform-server: %s\n", gate.status().message().c_str());
-    return 2;
-  }
   auto engine = Engine::Create(options.engine, options.device);
   if (!engine.ok()) {
     std::fprintf(stderr, "vdeform-server: %s\n", engine.status().ToString().c_str());
@@ -522,6 +523,9 @@ int RunNode(const ServerOptions& options) {
   }
   VD_LOG_INFO << "vdeform-server on " << (*engine)->DeviceDescription() << ", LCM " << url;
   if (!gate->control_key.empty()) VD_LOG_INFO << "control commands RESET and SAVE_SNAPSHOT need an HMAC";
+  if (!gate->frame_keys.empty())
+    VD_LOG_INFO << "frames must be signed (" << gate->frame_keys.size()
+                << (gate->frame_keys.per_source() ? " source keys)" : " key for every source)");
   if (!gate->accept_sources.empty()) VD_LOG_INFO << "accepting frames only from: " << options.accept_sources;
   Node node(options, &lcm, std::move(engine).value(), std::move(gate).value());
   // A refused checkpoint is reported (log and status) and the server starts a new model.

@@ -43,6 +43,11 @@ void ServerOptions::Register(FlagParser* f) {
          "File holding the HMAC-SHA256 key (>= 16 bytes, mode 600) that RESET and SAVE_SNAPSHOT commands must "
          "be signed with (vdeform-control --key-file); empty = control is not authenticated",
          "FILE");
+  f->Add("frame-key-file", &frame_key_file,
+         "File of HMAC-SHA256 keys frames must be signed with (vdeform-capture --frame-key-file): one line KEY for "
+         "every source, or SOURCE_ID KEY lines; KEY is 64 hex digits (openssl rand -hex 32), mode 600. Unsigned, "
+         "wrongly signed and replayed frames are counted and refused; empty = frames are not authenticated",
+         "FILE");
   f->Add("max-frame-pixels", &max_frame_pixels,
          "Frames declaring more pixels (width x height) are refused before decoding (0 = up to 8192 x 8192)");
   f->Section("Output");
@@ -75,6 +80,11 @@ StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
     auto key = ReadControlKey(control_key_file);
     if (!key.ok()) return key.status();
     g.control_key = std::move(key).value();
+  }
+  if (!frame_key_file.empty()) {
+    auto keys = ReadFrameKeys(frame_key_file);
+    if (!keys.ok()) return keys.status();
+    g.frame_keys = std::move(keys).value();
   }
   return g;
 }

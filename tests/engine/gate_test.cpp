@@ -19,17 +19,35 @@ class GateTest : public ::testing::Test {
     ASSERT_TRUE(scene.ok()) << scene.status().ToString();
     frame_ = (*scene)->Render(0);
   }
-  std::vector<uint8_t> Bytes(const std::string& source, int64_t seq, int64_t utime, bool corrupt = false) {
+  // A frame message of `source`; signed under `key` unless it is empty.
+  vdeform::rgbd_frame_t Message(const std::string& source, int64_t seq, int64_t utime, int64_t epoch = 1,
+                                const std::string& key = "") {
     RgbdFrame f = frame_;
     f.source_id = source;
     f.seq = seq;
     f.utime = utime;
     auto m = FrameToMessage(f, FrameEncodeOptions());
     EXPECT_TRUE(m.ok());
-    if (corrupt) m->width = 7;
-    std::vector<uint8_t> b(m->getEncodedSize());
-    m->encode(b.data(), 0, int(b.size()));
+    m->epoch = epoch;
+    if (!key.empty()) EXPECT_TRUE(SignFrame(key, &*m).ok());
+    return *m;
+  }
+  static std::vector<uint8_t> Wire(const vdeform::rgbd_frame_t& m) {
+    std::vector<uint8_t> b(m.getEncodedSize());
+    m.encode(b.data(), 0, int(b.size()));
     return b;
+  }
+  std::vector<uint8_t> Bytes(const std::string& source, int64_t seq, int64_t utime, bool corrupt = false) {
+    vdeform::rgbd_frame_t m = Message(source, seq, utime);
+    if (corrupt) m.width = 7;
+    return Wire(m);
+  }
+  static FrameDecision Decide(FrameGate* g, const vdeform::rgbd_frame_t& m) {
+    const auto b = Wire(m);
+    FrameDecision d = g->OnFrame(b.data(), b.size());
+    EXPECT_EQ(d.verdict == FrameVerdict::kAccept, d.frame.has_value());
+    EXPECT_EQ(d.verdict == FrameVerdict::kRejected, !d.reason.empty()) << d.reason;
+    return d;
   }
   FrameVerdict Send(FrameGate* g, const std::string& source, int64_t seq, int64_t utime, bool corrupt = false) {
     const auto b = Bytes(source, seq, utime, corrupt);
@@ -118,6 +136,87 @@ TEST_F(GateTest, OnlyAcceptedSourcesPass) {
   EXPECT_EQ(g.counters().foreign, 2);
   const std::vector<uint8_t> junk(64, 0x5a);
   EXPECT_EQ(g.OnFrame(junk.data(), junk.size()).verdict, FrameVerdict::kRejected);
+}
+
+const std::string kKeyA(32, 'a'), kKeyB(32, 'b');
+
+FrameKeys Keys(const std::string& text) {
+  auto keys = FrameKeys::Parse(text, "test");
+  EXPECT_TRUE(keys.ok()) << keys.status().ToString();
+  return *keys;
+}
+std::string Hex(const std::string& key) {
+  static const char* kHex = "0123456789abcdef";
+  std::string s;
+  for (unsigned char c : key) s += std::string{kHex[c >> 4], kHex[c & 15]};
+  return s;
+}
+
+TEST_F(GateTest, WithAFrameKeyOnlyFramesSignedUnderItPass) {
+  GateOptions o;
+  o.frame_keys = Keys(Hex(kKeyA));
+  FrameGate g(o);
+  EXPECT_TRUE(g.authenticated_frames());
+  const int64_t t = 1764633600000000;
+  EXPECT_EQ(Decide(&g, Message("cam", 0, t)).reason, "unsigned");
+  EXPECT_EQ(Decide(&g, Message("cam", 0, t, 1, kKeyB)).reason, "bad_signature") << "another key";
+  vdeform::rgbd_frame_t altered = Message("cam", 0, t, 1, kKeyA);
+  altered.depth_data[100] ^= 1;
+  EXPECT_EQ(Decide(&g, altered).reason, "bad_signature") << "payload changed after signing";
+  altered = Message("cam", 0, t, 1, kKeyA);
+  altered.seq = 1000;
+  EXPECT_EQ(Decide(&g, altered).reason, "bad_signature") << "sequence number changed after signing";
+  EXPECT_EQ(Decide(&g, Message("cam", 0, t, 1, kKeyA)).verdict, FrameVerdict::kAccept);
+  // One key for every source: any id signed under it passes.
+  EXPECT_EQ(Decide(&g, Message("other", 0, t, 9, kKeyA)).verdict, FrameVerdict::kAccept);
+  const GateCounters& c = g.counters();
+  EXPECT_EQ(c.received, 6);
+  EXPECT_EQ(c.rejected, 4);
+  EXPECT_EQ(c.lost + c.duplicates + c.reordered + c.source_restarts, 0) << "refused frames move no sequence";
+}
+
+TEST_F(GateTest, PerSourceKeysBindEachSourceToItsKey) {
+  GateOptions o;
+  o.frame_keys = Keys("left " + Hex(kKeyA) + "\nright " + Hex(kKeyB) + "\n");
+  FrameGate g(o);
+  const int64_t t = 1764633600000000;
+  EXPECT_EQ(Decide(&g, Message("left", 0, t, 1, kKeyA)).verdict, FrameVerdict::kAccept);
+  EXPECT_EQ(Decide(&g, Message("right", 0, t, 2, kKeyB)).verdict, FrameVerdict::kAccept);
+  EXPECT_EQ(Decide(&g, Message("right", 1, t + 1, 2, kKeyA)).reason, "bad_signature") << "left's key for right";
+  EXPECT_EQ(Decide(&g, Message("intruder", 0, t, 3, kKeyA)).reason, "no_frame_key");
+  EXPECT_EQ(g.counters().rejected, 2);
+}
+
+// A recorded frame played back: the same (epoch, seq) is a duplicate, and a whole earlier run
+// (another epoch with older capture times) is refused as replayed; a real restart (a new epoch
+// with newer times) is taken.
+TEST_F(GateTest, ReplayedSignedFramesAreRefused) {
+  GateOptions o;
+  o.frame_keys = Keys(Hex(kKeyA));
+  FrameGate g(o);
+  const int64_t t = 1764633600000000;
+  const vdeform::rgbd_frame_t first_run[] = {Message("cam", 0, t, 11, kKeyA), Message("cam", 1, t + 33000, 11, kKeyA),
+                                             Message("cam", 2, t + 66000, 11, kKeyA)};
+  for (const auto& m : first_run) EXPECT_EQ(Decide(&g, m).verdict, FrameVerdict::kAccept);
+  EXPECT_EQ(Decide(&g, first_run[2]).verdict, FrameVerdict::kStale) << "the same frame again";
+  EXPECT_EQ(Decide(&g, first_run[1]).verdict, FrameVerdict::kStale);
+  // The client restarts: a new epoch, seq from 0, later capture times.
+  EXPECT_EQ(Decide(&g, Message("cam", 0, t + 5'000'000, 22, kKeyA)).verdict, FrameVerdict::kAccept);
+  EXPECT_EQ(Decide(&g, Message("cam", 1, t + 5'033'000, 22, kKeyA)).verdict, FrameVerdict::kAccept);
+  // The first run played back: every frame refused, the second run goes on.
+  for (const auto& m : first_run) {
+    const FrameDecision d = Decide(&g, m);
+    EXPECT_EQ(d.reason, "replayed") << m.seq;
+    EXPECT_NE(d.status.message().find("earlier run"), std::string::npos) << d.status.message();
+  }
+  EXPECT_EQ(Decide(&g, Message("cam", 2, t + 5'066'000, 22, kKeyA)).verdict, FrameVerdict::kAccept);
+  const GateCounters& c = g.counters();
+  EXPECT_EQ(c.received, 11);
+  EXPECT_EQ(c.duplicates, 1);
+  EXPECT_EQ(c.reordered, 1);
+  EXPECT_EQ(c.rejected, 3);
+  EXPECT_EQ(c.source_restarts, 1);
+  EXPECT_EQ(c.lost, 0);
 }
 
 std::vector<uint8_t> Encode(const vdeform::control_t& m) {

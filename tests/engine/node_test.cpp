@@ -48,7 +48,7 @@ class NodeTest : public ::testing::Test {
     ASSERT_TRUE(options_.Validate().ok());
     auto engine = Engine::Create(options_.engine, "");
     ASSERT_TRUE(engine.ok()) << engine.status().ToString();
-    node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value());
+    node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value(), gate_);
     lcm_.subscribe(kFrameChannel, &Node::OnFrame, node_.get());
     lcm_.subscribe(kControlChannel, &Node::OnControl, node_.get());
     lcm_.subscribe(kStatusChannel, &Inbox::OnStatus, &inbox_);
@@ -83,6 +83,8 @@ class NodeTest : public ::testing::Test {
 
   lcm::LCM lcm_{"memq://"};
   ServerOptions options_;
+  // What the node's gate is built with (a derived fixture sets keys before SetUp).
+  GateOptions gate_;
   std::unique_ptr<Node> node_;
   Inbox inbox_;
   RgbdFrame frame_;
@@ -219,6 +221,60 @@ TEST_F(NodeTest, SnapshotStaysInsideItsDirectoryAndMeshRequestRepublishes) {
   // Live and canonical meshes are sent again for a viewer that joined late.
   ASSERT_GE(inbox_.meshes.size(), before + 2);
   EXPECT_EQ(int(inbox_.meshes.back().kind), int(vdeform::mesh_t::KIND_CANONICAL));
+}
+
+// A node given a frame key: only frames signed under it reach the engine; the refused ones are
+// counted by reason in the status (vdeform-control prints them as rejected_<reason>).
+class SignedNodeTest : public NodeTest {
+ protected:
+  void SetUp() override {
+    auto keys = FrameKeys::Parse(std::string(64, '7'), "test");
+    ASSERT_TRUE(keys.ok());
+    gate_.frame_keys = *keys;
+    key_ = *gate_.frame_keys.For("test");
+    NodeTest::SetUp();
+  }
+  vdeform::rgbd_frame_t Signed(int64_t seq, int64_t epoch, int64_t utime) {
+    vdeform::rgbd_frame_t m = Message(seq);
+    m.epoch = epoch;
+    m.utime = utime;
+    EXPECT_TRUE(SignFrame(key_, &m).ok());
+    return m;
+  }
+  std::string key_;
+};
+
+TEST_F(SignedNodeTest, OnlySignedFramesReachTheModel) {
+  const int64_t t = 1764633600000000;
+  auto unsigned_frame = Message(0);
+  lcm_.publish(kFrameChannel, &unsigned_frame);
+  auto forged = Message(0);
+  forged.epoch = 5;
+  ASSERT_TRUE(SignFrame(std::string(32, 'x'), &forged).ok());
+  lcm_.publish(kFrameChannel, &forged);
+  Pump();
+  EXPECT_FALSE(node_->RunOnce()) << "no unsigned or forged frame may reach the engine";
+  auto first = Signed(0, 5, t);
+  lcm_.publish(kFrameChannel, &first);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  // A restart of the client (new epoch, later times), then its first run played back.
+  auto restarted = Signed(0, 6, t + 1'000'000);
+  lcm_.publish(kFrameChannel, &restarted);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  lcm_.publish(kFrameChannel, &first);
+  Pump();
+  EXPECT_FALSE(node_->RunOnce()) << "a replayed frame of the earlier run";
+  const auto& st = Status();
+  EXPECT_EQ(st.frames_received, 5);
+  EXPECT_EQ(st.frames_processed, 2);
+  EXPECT_EQ(st.frames_rejected, 3);
+  EXPECT_EQ(RejectCount(st, "unsigned"), 1);
+  EXPECT_EQ(RejectCount(st, "bad_signature"), 1);
+  EXPECT_EQ(RejectCount(st, "replayed"), 1);
+  EXPECT_EQ(st.source_restarts, 1);
+  EXPECT_EQ(st.model_frames, 2);
 }
 
 // Serving until a signal. select() in the receive returns EINTR for a signal that arrives while it
