@@ -4,12 +4,26 @@
 #include <cstdlib>
 
 namespace vd {
-namespace {
 
-// Largest gap of sequence numbers counted as lost frames at once.
-constexpr int64_t kMaxCountedGap = int64_t(1) << 20;
+void GateParams::Bind(FlagParser* f) {
+  f->Add("max-frame-pixels", &max_frame_pixels,
+         "Frames declaring more pixels (width x height) are refused before decoding (0 = up to 8192 x 8192)");
+  f->Add("max-seq-jump", &sequence.max_jump,
+         "A frame numbered more than N after its source's newest one is held, not taken, until "
+         "--seq-jump-confirm frames in a row follow it (300 = 10 s at 30 Hz); numbers skipped within N "
+         "count as lost",
+         "N");
+  f->Add("seq-jump-confirm", &sequence.confirm_frames,
+         "Frames in a row (the first included, each newer and within --max-seq-jump of the last) that confirm "
+         "a jump; a frame of the old sequence in between cancels it (1 = take every jump)",
+         "N");
+}
 
-}  // namespace
+Status GateParams::Validate() const {
+  if (max_frame_pixels < 0)
+    return ParamOutOfBounds("GateParams", "max_frame_pixels", double(max_frame_pixels), ">= 0 (--max-frame-pixels)");
+  return sequence.Validate();
+}
 
 std::string RejectReason(const Status& s) {
   const std::string& m = s.message();
@@ -22,16 +36,19 @@ std::string RejectReason(const Status& s) {
   return "invalid_frame";
 }
 
-FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
+FrameDecision FrameGate::Reject(Status status, std::string reason) {
+  ++counters_.rejected;
   FrameDecision d;
+  d.status = std::move(status);
+  d.reason = std::move(reason);
+  return d;
+}
+
+FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
   ++counters_.received;
   auto msg = DecodeLcm<vdeform::rgbd_frame_t>(data, size);
-  if (!msg.ok()) {
-    ++counters_.rejected;
-    d.status = msg.status();
-    d.reason = "malformed_message";
-    return d;
-  }
+  if (!msg.ok()) return Reject(msg.status(), "malformed_message");
+  FrameDecision d;
   if (!options_.accept_sources.empty() &&
       std::find(options_.accept_sources.begin(), options_.accept_sources.end(), msg->source_id) ==
           options_.accept_sources.end()) {
@@ -40,62 +57,55 @@ FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
     d.status = PermissionDenied("source '" + msg->source_id + "' is not accepted");
     return d;
   }
-  if (options_.max_frame_pixels > 0 && int64_t(msg->width) * int64_t(msg->height) > options_.max_frame_pixels) {
-    ++counters_.rejected;
-    d.status = OutOfRange("frame of " + std::to_string(msg->width) + "x" + std::to_string(msg->height) +
-                          " exceeds the server's limit of " + std::to_string(options_.max_frame_pixels) + " pixels");
-    d.reason = "oversized";
-    return d;
-  }
-  if (msg->seq < 0 || msg->utime < 0) {
-    ++counters_.rejected;
-    d.status = InvalidArgument("frame has a negative sequence number or capture time");
-    d.reason = "invalid_frame";
-    return d;
-  }
+  const int64_t max_pixels = options_.params.max_frame_pixels;
+  if (max_pixels > 0 && int64_t(msg->width) * int64_t(msg->height) > max_pixels)
+    return Reject(OutOfRange("frame of " + std::to_string(msg->width) + "x" + std::to_string(msg->height) +
+                             " exceeds the server's limit of " + std::to_string(max_pixels) + " pixels"),
+                  "oversized");
+  if (msg->seq < 0 || msg->utime < 0)
+    return Reject(InvalidArgument("frame has a negative sequence number or capture time"), "invalid_frame");
   if (!Authenticate(*msg, &d)) return d;
+
   auto it = sources_.find(msg->source_id);
-  bool restart = false;
-  if (it != sources_.end() && msg->epoch != it->second.epoch) {
-    // Epochs are random, so only the capture time orders them: a signed frame of an epoch whose
-    // time is not newer than the source's last frame is a recording played back.
-    if (authenticated_frames() && msg->utime <= it->second.utime) {
-      ++counters_.rejected;
-      d.status = PermissionDenied("frame " + std::to_string(msg->seq) + " of '" + msg->source_id +
-                                  "' is from an earlier run (epoch " + std::to_string(msg->epoch) + ", capture time " +
-                                  std::to_string(msg->utime) + " us, not after " +
-                                  std::to_string(it->second.utime) + ")");
-      d.reason = "replayed";
-      return d;
-    }
-    restart = true;
-  } else if (it != sources_.end() && msg->seq <= it->second.seq) {
-    if (msg->utime > it->second.utime) {
-      // The sequence started again with a newer capture time: the client restarted.
-      restart = true;
-    } else {
-      if (msg->seq == it->second.seq) ++counters_.duplicates;
-      else ++counters_.reordered;
+  const SequenceDecision seq =
+      it == sources_.end() ? SequenceDecision{} : it->second.Classify(msg->epoch, msg->seq, msg->utime);
+  const std::string what = "frame " + std::to_string(msg->seq) + " of '" + msg->source_id + "'";
+  switch (seq.verdict) {
+    case SequenceVerdict::kDuplicate:
+    case SequenceVerdict::kLate:
+      // Not decoded: an older view of the scene than the model holds. Marked received, so a late
+      // frame is counted once and takes its number out of the lost ones.
+      it->second.Commit(seq, msg->epoch, msg->seq, msg->utime);
+      ++(seq.verdict == SequenceVerdict::kDuplicate ? counters_.duplicates : counters_.reordered);
+      counters_.lost += seq.lost_delta;
       d.verdict = FrameVerdict::kStale;
-      d.status = OutOfRange("frame " + std::to_string(msg->seq) + " of '" + msg->source_id + "' after " +
-                            std::to_string(it->second.seq));
+      d.status = OutOfRange(what + " after " + std::to_string(it->second.seq()));
       return d;
-    }
+    case SequenceVerdict::kReplayed:
+      return Reject(PermissionDenied(what + " is from an earlier run (epoch " + std::to_string(msg->epoch) +
+                                     ", capture time not after the source's last frame)"),
+                    "replayed");
+    default:
+      break;
   }
   auto frame = MessageToFrame(*msg);
-  if (!frame.ok()) {
-    ++counters_.rejected;
-    d.status = frame.status();
-    d.reason = RejectReason(frame.status());
+  if (!frame.ok()) return Reject(frame.status(), RejectReason(frame.status()));
+  // Only valid frames move a source's sequence: garbage cannot.
+  if (it == sources_.end())
+    it = sources_.emplace(msg->source_id, SourceSequence(options_.params.sequence, authenticated_frames())).first;
+  const int64_t before = it->second.seq();
+  it->second.Commit(seq, msg->epoch, msg->seq, msg->utime);
+  counters_.lost += seq.lost_delta;
+  if (seq.verdict == SequenceVerdict::kRestart) ++counters_.source_restarts;
+  if (seq.verdict == SequenceVerdict::kJumpAdopted) ++counters_.jumps;
+  if (seq.verdict == SequenceVerdict::kJumpHeld) {
+    ++counters_.held;
+    d.verdict = FrameVerdict::kHeld;
+    d.status = OutOfRange(what + " jumps " + std::to_string(msg->seq - before) + " ahead of " +
+                          std::to_string(before) + " (more than " + std::to_string(options_.params.sequence.max_jump) +
+                          "): held until confirmed");
     return d;
   }
-  // Counted only for valid frames, so garbage cannot move a source's sequence.
-  if (restart) ++counters_.source_restarts;
-  else if (it != sources_.end() && msg->seq - it->second.seq > 1)
-    // Both are >= 0, so the difference cannot overflow; a jump beyond kMaxCountedGap is counted
-    // as that many (the counter must not overflow on a hostile sequence number).
-    counters_.lost += std::min<int64_t>(msg->seq - it->second.seq - 1, kMaxCountedGap);
-  sources_[msg->source_id] = SourceState{msg->epoch, msg->seq, msg->utime};
   d.verdict = FrameVerdict::kAccept;
   d.frame = std::move(frame).value();
   return d;
@@ -106,9 +116,7 @@ bool FrameGate::Authenticate(const vdeform::rgbd_frame_t& msg, FrameDecision* d)
   const std::string* key = options_.frame_keys.For(msg.source_id);
   Status s = key ? VerifyFrame(*key, msg) : PermissionDenied("no frame key for source '" + msg.source_id + "'");
   if (s.ok()) return true;
-  ++counters_.rejected;
-  d->reason = !key ? "no_frame_key" : msg.auth_size == 0 ? "unsigned" : "bad_signature";
-  d->status = s;
+  *d = Reject(s, !key ? "no_frame_key" : msg.auth_size == 0 ? "unsigned" : "bad_signature");
   return false;
 }
 

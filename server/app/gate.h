@@ -1,22 +1,37 @@
 #pragma once
 // What the node accepts from the network, decided without the engine: frames (decoding,
-// validation, source filter, sequence numbers) and control commands (decoding, HMAC, replay).
-// Everything here is deterministic and allocation-bounded, so the fuzz target drives it directly.
+// signature, source filter, sequence numbers, validation) and control commands (decoding, HMAC,
+// replay). Everything here is deterministic and allocation-bounded, so the fuzz target drives it
+// directly.
 #include <cstdint>
 #include <map>
 #include <optional>
-#include <set>
 #include <string>
 #include <vector>
 
+#include "sequence.h"
 #include "vd/common/auth.h"
+#include "vd/common/flags.h"
 #include "vd/common/frame.h"
 #include "vd/common/messages.h"
 #include "vd/common/status.h"
 
 namespace vd {
 
+// The gate's limits, bound to vdeform-server's flags (Bind) and checked once (Validate).
+struct GateParams {
+  // Frames declaring more pixels are refused before decoding (a 16-byte RVL stream can declare an
+  // 8192 x 8192 image: 128 MB of depth). 0 = no limit beyond the decoders' 8192 x 8192.
+  int64_t max_frame_pixels = 2048 * 2048;
+  // Forward jumps of a source's sequence numbers and how they are confirmed.
+  SequenceParams sequence;
+
+  void Bind(FlagParser* flags);
+  Status Validate() const;
+};
+
 struct GateOptions {
+  GateParams params;
   // Frames from other source ids are ignored (counted); empty = any source.
   std::vector<std::string> accept_sources;
   // HMAC key for control commands; empty = control is not authenticated (LCM has no auth).
@@ -27,20 +42,20 @@ struct GateOptions {
   // Authenticated commands older or newer than this (vs the server's clock) are refused, which
   // with the strictly increasing utime check stops replays.
   int64_t control_max_skew_us = 30'000'000;
-  // Frames declaring more pixels are refused before decoding (a 16-byte RVL stream can declare an
-  // 8192 x 8192 image: 128 MB of depth). 0 = no limit beyond the decoders' 8192 x 8192.
-  int64_t max_frame_pixels = 2048 * 2048;
 };
 
 // Per-frame outcome.
 enum class FrameVerdict {
   kAccept,
-  // Refused by decoding or validation (status + reason say why).
+  // Refused by decoding, signature or validation (status + reason say why).
   kRejected,
   // A duplicate or an older frame of a source that already sent a newer one.
   kStale,
   // From a source id not in accept_sources.
   kForeign,
+  // Its sequence number jumped further ahead than GateParams::sequence.max_jump: held back until
+  // the frames after it confirm the jump.
+  kHeld,
 };
 
 struct FrameDecision {
@@ -59,14 +74,20 @@ struct ControlDecision {
 struct GateCounters {
   int64_t received = 0;
   int64_t rejected = 0;
-  // Duplicates (same seq again) and reordered frames (an older seq after a newer one).
+  // Duplicates (a number received before) and reordered frames (an older number arriving late).
   int64_t duplicates = 0;
   int64_t reordered = 0;
-  // Sequence numbers skipped between accepted frames of a source (frames lost on the way).
+  // Sequence numbers skipped between taken frames of a source and not received since (a late
+  // frame takes its number back out). At most max_jump - 1 per taken frame: a confirmed jump
+  // counts none, so no sequence number can inflate it beyond what the traffic carried.
   int64_t lost = 0;
-  // A source that came back with a new epoch, or its seq back with a newer capture time: its
+  // A source that came back with a new epoch, or its seq back to 0 with a newer capture time: its
   // client restarted.
   int64_t source_restarts = 0;
+  // Frames held back because their number jumped too far ahead, and jumps adopted after the
+  // following frames confirmed them.
+  int64_t held = 0;
+  int64_t jumps = 0;
   int64_t foreign = 0;
   int64_t control_accepted = 0;
   int64_t control_refused = 0;
@@ -79,25 +100,21 @@ class FrameGate {
   FrameDecision OnFrame(const void* data, size_t size);
   // now_us: the server's clock (microseconds since the epoch).
   ControlDecision OnControl(const void* data, size_t size, int64_t now_us);
-  // Forgets the sequence state (a reset model accepts any source's next frame).
-  void ForgetSequences() { sources_.clear(); }
 
   const GateCounters& counters() const { return counters_; }
   bool authenticated_control() const { return !options_.control_key.empty(); }
   bool authenticated_frames() const { return !options_.frame_keys.empty(); }
 
  private:
-  struct SourceState {
-    int64_t epoch = 0;
-    int64_t seq = -1;
-    int64_t utime = 0;
-  };
   // Refuses a frame that is not signed under its source's key: "no_frame_key", "unsigned" or
   // "bad_signature" in d; true when it may go on.
   bool Authenticate(const vdeform::rgbd_frame_t& msg, FrameDecision* d);
+  // Counts a refusal with its reason.
+  FrameDecision Reject(Status status, std::string reason);
+
   GateOptions options_;
   GateCounters counters_;
-  std::map<std::string, SourceState> sources_;
+  std::map<std::string, SourceSequence> sources_;
   int64_t last_control_utime_ = 0;
 };
 

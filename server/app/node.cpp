@@ -55,6 +55,9 @@ class Node::Impl {
       case FrameVerdict::kStale:
         // Re-sent or reordered: an older view of the scene than the model already holds.
         return;
+      case FrameVerdict::kHeld:
+        if (gate_.counters().held == 1) VD_LOG_WARNING << d.status.message();
+        return;
       case FrameVerdict::kForeign:
         if (gate_.counters().foreign == 1) VD_LOG_WARNING << "ignoring frames: " << d.status.message();
         return;
@@ -238,10 +241,11 @@ class Node::Impl {
     std::lock_guard<std::mutex> lock(mutex_);
     const GateCounters& g = gate_.counters();
     std::printf("vdeform-server: received %lld, processed %lld, dropped %lld, rejected %lld, duplicate %lld, "
-                "reordered %lld, lost %lld, foreign %lld frames; %lld control commands refused\n",
+                "reordered %lld, lost %lld, foreign %lld, held %lld frames; %lld sequence jumps; %lld control "
+                "commands refused\n",
                 (long long)g.received, (long long)processed_, (long long)dropped_, (long long)rejected_,
                 (long long)g.duplicates, (long long)g.reordered, (long long)g.lost, (long long)g.foreign,
-                (long long)g.control_refused);
+                (long long)g.held, (long long)g.jumps, (long long)g.control_refused);
     if (stats_.count()) std::printf("stages (mean ms): %s\n", stats_.Summary().c_str());
     if (!latencies_ms_.empty())
       std::printf("latency capture -> mesh (last %zu frames): p50 %.0f ms, p95 %.0f ms\n", latencies_ms_.size(),
@@ -271,6 +275,8 @@ class Node::Impl {
       st.frames_foreign = g.foreign;
       st.source_restarts = g.source_restarts;
       st.control_refused = g.control_refused;
+      st.frames_held = g.held;
+      st.sequence_jumps = g.jumps;
       st.model_frames = model_frames_;
       st.checkpoint_utime = checkpoint_utime_;
       st.checkpoint_message = checkpoint_message_;

@@ -48,8 +48,7 @@ void ServerOptions::Register(FlagParser* f) {
          "every source, or SOURCE_ID KEY lines; KEY is 64 hex digits (openssl rand -hex 32), mode 600. Unsigned, "
          "wrongly signed and replayed frames are counted and refused; empty = frames are not authenticated",
          "FILE");
-  f->Add("max-frame-pixels", &max_frame_pixels,
-         "Frames declaring more pixels (width x height) are refused before decoding (0 = up to 8192 x 8192)");
+  gate.Bind(f);
   f->Section("Output");
   f->AddSwitch("quiet", &quiet, "Only warnings and errors");
 }
@@ -59,15 +58,14 @@ Status ServerOptions::Validate() const {
   // Source options are checked by SourceOptions::Validate when the offline mode opens its source.
   if (!(checkpoint_interval >= 0.0))
     return ParamOutOfBounds("ServerOptions", "checkpoint_interval", checkpoint_interval, ">= 0 s (--checkpoint-interval)");
-  if (max_frame_pixels < 0)
-    return ParamOutOfBounds("ServerOptions", "max_frame_pixels", double(max_frame_pixels), ">= 0 (--max-frame-pixels)");
+  VD_RETURN_IF_ERROR(gate.Validate());
   if (resume && checkpoint_dir.empty()) return InvalidArgument("--resume needs --checkpoint DIR");
   return Status::Ok();
 }
 
 StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
   GateOptions g;
-  g.max_frame_pixels = max_frame_pixels;
+  g.params = gate;
   size_t begin = 0;
   while (begin <= accept_sources.size() && !accept_sources.empty()) {
     const size_t end = std::min(accept_sources.find(',', begin), accept_sources.size());

@@ -38,8 +38,8 @@ struct ServerOptions {
   std::string control_key_file;
   // Frames only when signed under their source's key in this file (one key, or SOURCE_ID KEY lines).
   std::string frame_key_file;
-  // Largest frame accepted, in pixels (checked before decoding).
-  int64_t max_frame_pixels = GateOptions().max_frame_pixels;
+  // What the gate lets through: frame size, sequence jumps (bound to flags by GateParams::Bind).
+  GateParams gate;
   bool quiet = false;
 
   void Register(FlagParser* flags);

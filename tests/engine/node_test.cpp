@@ -156,6 +156,25 @@ TEST_F(NodeTest, NewestFrameWinsAndDropsAreCounted) {
   EXPECT_EQ(st.last_processed_seq, 2);
 }
 
+// A frame numbered near 2^62 under the same source is held, not processed, and the real stream
+// goes on; the status says so (frames_held) and counts no losses for it.
+TEST_F(NodeTest, SequenceJumpsAreHeldAndReported) {
+  for (int64_t seq : {int64_t(0), int64_t(1) << 62, int64_t(1)}) {
+    auto m = Message(seq);
+    lcm_.publish(kFrameChannel, &m);
+    Pump();
+    node_->RunOnce();
+  }
+  const auto& st = Status();
+  EXPECT_EQ(st.frames_received, 3);
+  EXPECT_EQ(st.frames_processed, 2);
+  EXPECT_EQ(st.frames_held, 1);
+  EXPECT_EQ(st.sequence_jumps, 0);
+  EXPECT_EQ(st.frames_lost, 0);
+  EXPECT_EQ(st.frames_reordered, 0);
+  EXPECT_EQ(st.last_processed_seq, 1);
+}
+
 TEST_F(NodeTest, StatusReportsCaptureToMeshLatency) {
   // A frame without a capture time is not counted.
   auto untimed = Message(0);

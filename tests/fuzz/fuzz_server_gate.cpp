@@ -3,11 +3,12 @@
 // records [kind byte][u16 length][bytes]: kind even = a VDEFORM_FRAMES message, odd = a
 // VDEFORM_CONTROL message. Two gates take the same records: one open (source filter and control
 // key only), one that also requires frames signed under per-source keys (capture-a, capture-b).
-// Invariants: every frame is counted exactly once (accepted, rejected, stale or foreign); an
+// Invariants: every frame is counted exactly once (accepted, rejected, stale, foreign or held); an
 // accepted frame is valid, from an accepted source, and its seq is newer than the source's last
-// accepted one unless the gate counted a restart; with frame keys an accepted frame verifies under
-// its source's key; a state-changing control command is accepted only with a valid HMAC and a
-// utime newer than any accepted before.
+// accepted one unless the gate counted a restart; a held frame is more than max_jump ahead of it;
+// the lost count stays within [0, (max_jump - 1) x accepted frames] whatever the numbers; with frame
+// keys an accepted frame verifies under its source's key; a state-changing control command is
+// accepted only with a valid HMAC and a utime newer than any accepted before.
 #include <map>
 
 #include "fuzz_util.h"
@@ -23,7 +24,8 @@ const char* const kFrameKeyFile =
     "capture-b 6262626262626262626262626262626262626262626262626262626262626262\n";
 
 void RunGate(vd::FrameGate* gate, const uint8_t* data, size_t size) {
-  int64_t frames = 0, accepted = 0, stale = 0, foreign = 0, rejected = 0;
+  const int64_t max_jump = vd::SequenceParams().max_jump;
+  int64_t frames = 0, accepted = 0, stale = 0, foreign = 0, rejected = 0, held = 0;
   std::map<std::string, int64_t> last_seq;
   int64_t last_control_utime = 0;
   size_t pos = 0;
@@ -67,7 +69,17 @@ void RunGate(vd::FrameGate* gate, const uint8_t* data, size_t size) {
           ++foreign;
           VD_FUZZ_CHECK(!d.frame);
           break;
+        case vd::FrameVerdict::kHeld: {
+          ++held;
+          VD_FUZZ_CHECK(!d.frame);
+          auto wire = vd::DecodeLcm<vdeform::rgbd_frame_t>(msg, len);
+          VD_FUZZ_CHECK(wire.ok());
+          auto it = last_seq.find(wire->source_id);
+          VD_FUZZ_CHECK(it != last_seq.end() && wire->seq - it->second > max_jump);
+          break;
+        }
       }
+      VD_FUZZ_CHECK(gate->counters().lost >= 0 && gate->counters().lost <= (max_jump - 1) * accepted);
     } else {
       vd::ControlDecision d = gate->OnControl(msg, len, kNowUs);
       if (!d.status.ok()) continue;
@@ -84,7 +96,7 @@ void RunGate(vd::FrameGate* gate, const uint8_t* data, size_t size) {
   const vd::GateCounters& c = gate->counters();
   VD_FUZZ_CHECK(c.received == frames);
   VD_FUZZ_CHECK(c.rejected == rejected && c.foreign == foreign && c.duplicates + c.reordered == stale);
-  VD_FUZZ_CHECK(accepted + rejected + stale + foreign == frames);
+  VD_FUZZ_CHECK(c.held == held && accepted + rejected + stale + foreign + held == frames);
 }
 
 }  // namespace

@@ -266,7 +266,7 @@ void StatusSeeds(SeedWriter* w) {
 // control), with the source ids and the HMAC keys that target configures: in-order frames, a
 // duplicate, a gap, a restart, a foreign source, a signed RESET and an unsigned one; signed frames
 // (capture-a under 32 'a' bytes, capture-b under 32 'b'), a restart with a new epoch, a replay of
-// the earlier epoch and a frame signed under the other source's key.
+// the earlier epoch and a frame signed under the other source's key; a forged jump and a real one.
 void GateSeeds(SeedWriter* w) {
   const std::string key = "fuzz-control-key-0123456789";
   const int64_t now = 1764633600000000;
@@ -340,6 +340,14 @@ void GateSeeds(SeedWriter* w) {
   record(&sig, 0, signed_frame("capture-a", 1, now + 1, 7, 'a'));
   record(&sig, 0, frame("capture-a", 1, now + 11));
   w->Write("server_gate", "seed-signed", sig);
+  // A forged number near 2^62 amid a stream, then a jump confirmed by the frames after it.
+  std::vector<uint8_t> jump;
+  for (int64_t s = 0; s < 3; ++s) record(&jump, 0, frame("capture-a", s, now + s));
+  record(&jump, 0, frame("capture-a", int64_t(1) << 62, now + 3));
+  record(&jump, 0, frame("capture-a", 3, now + 4));
+  for (int64_t s = 1000; s < 1003; ++s) record(&jump, 0, frame("capture-a", s, now + s));
+  record(&jump, 0, frame("capture-a", 2, now + 2));
+  w->Write("server_gate", "seed-jump", jump);
 }
 
 }  // namespace
