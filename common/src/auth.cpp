@@ -94,7 +94,8 @@ std::optional<Sha256Digest> FrameHmac(const std::string& key, const vdeform::rgb
 Status CheckMac(const std::optional<Sha256Digest>& expected, int32_t auth_size, const std::vector<uint8_t>& auth,
                 const char* what) {
   if (auth_size != int32_t(kMacBytes) || auth.size() != kMacBytes)
-    return PermissionDenied(std::string(what) + " carries no HMAC-SHA256 (auth_size " + std::to_string(auth_size) + ")");
+    return PermissionDenied(std::string(what) + " carries no HMAC-SHA256 (auth_size " + std::to_string(auth_size) +
+                            ")");
   if (!expected) return Internal(std::string("OpenSSL could not compute the HMAC of a ") + what);
   if (CRYPTO_memcmp(expected->data(), auth.data(), kMacBytes) != 0)
     return PermissionDenied(std::string(what) + " HMAC does not match the key");

@@ -148,7 +148,7 @@ Status ValidateLcmWire<vdeform::server_status_t>(const void* data, size_t size) 
   VD_RETURN_IF_ERROR(w.Count("num_reject_reasons", &n));
   VD_RETURN_IF_ERROR(w.Strings(n, "reject_reason"));
   VD_RETURN_IF_ERROR(w.Array(n, 8, "reject_count"));
-  VD_RETURN_IF_ERROR(w.Skip(8 * 8, "sequence, control and jump counters"));
+  VD_RETURN_IF_ERROR(w.Skip(11 * 8, "sequence, control, jump and rate counters"));
   VD_RETURN_IF_ERROR(w.Skip(8, "last_processed_seq"));
   VD_RETURN_IF_ERROR(w.String("last_source_id"));
   VD_RETURN_IF_ERROR(w.Count("num_stages", &n));

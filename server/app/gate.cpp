@@ -17,12 +17,40 @@ void GateParams::Bind(FlagParser* f) {
          "Frames in a row (the first included, each newer and within --max-seq-jump of the last) that confirm "
          "a jump; a frame of the old sequence in between cancels it (1 = take every jump)",
          "N");
+  f->Add("max-frame-rate", &max_frame_rate,
+         "Frames per second taken from one source (bursts of up to a second's worth); more are counted "
+         "(frames_rate_limited) and dropped undecoded",
+         "HZ");
+  f->Add("max-control-rate", &max_control_rate,
+         "Control messages per second taken from one sender (REQUEST_MESH is served at most once a second in "
+         "all); more are counted (control_rate_limited) and refused",
+         "HZ");
+  f->Add("max-sources", &max_sources,
+         "Sources whose sequence and rate the server tracks; a frame of one more source is refused "
+         "(rejected_too_many_sources), one more control sender shares one rate with all the others",
+         "N");
 }
 
 Status GateParams::Validate() const {
   if (max_frame_pixels < 0)
     return ParamOutOfBounds("GateParams", "max_frame_pixels", double(max_frame_pixels), ">= 0 (--max-frame-pixels)");
+  if (!(max_frame_rate > 0.0 && max_frame_rate <= 10000.0))
+    return ParamOutOfBounds("GateParams", "max_frame_rate", max_frame_rate,
+                            "0 < max_frame_rate <= 10000 Hz (--max-frame-rate)");
+  if (!(max_control_rate > 0.0 && max_control_rate <= 10000.0))
+    return ParamOutOfBounds("GateParams", "max_control_rate", max_control_rate,
+                            "0 < max_control_rate <= 10000 Hz (--max-control-rate)");
+  if (max_sources < 1 || max_sources > 4096)
+    return ParamOutOfBounds("GateParams", "max_sources", double(max_sources),
+                            "1 <= max_sources <= 4096 (--max-sources)");
   return sequence.Validate();
+}
+
+FrameGate::FrameGate(GateOptions options)
+    : options_(std::move(options)),
+      frame_rate_(options_.params.max_frame_rate, size_t(options_.params.max_sources)),
+      control_rate_(options_.params.max_control_rate, size_t(options_.params.max_sources)) {
+  if (!options_.clock) options_.clock = SteadyMicros;
 }
 
 std::string RejectReason(const Status& s) {
@@ -88,11 +116,28 @@ FrameDecision FrameGate::OnFrame(const void* data, size_t size) {
     default:
       break;
   }
+  const GateParams& p = options_.params;
+  if (it == sources_.end() && sources_.size() >= size_t(p.max_sources))
+    return Reject(Unavailable("source '" + msg->source_id + "' would be source " + std::to_string(p.max_sources + 1) +
+                              "; the server tracks at most " + std::to_string(p.max_sources) + " (--max-sources)"),
+                  "too_many_sources");
+  // Before decoding: the rate bounds what the decoders spend on one source.
+  if (!frame_rate_.Allow(msg->source_id, options_.clock())) {
+    // Received, though not taken: its number is not lost.
+    if (it != sources_.end()) it->second.NoteDropped(seq, msg->seq);
+    ++counters_.rate_limited;
+    d.verdict = FrameVerdict::kRateLimited;
+    d.status = Unavailable(what + " is above the source's rate of " + std::to_string(p.max_frame_rate) +
+                           " Hz (--max-frame-rate)");
+    return d;
+  }
   auto frame = MessageToFrame(*msg);
   if (!frame.ok()) return Reject(frame.status(), RejectReason(frame.status()));
   // Only valid frames move a source's sequence: garbage cannot.
-  if (it == sources_.end())
-    it = sources_.emplace(msg->source_id, SourceSequence(options_.params.sequence, authenticated_frames())).first;
+  if (it == sources_.end()) {
+    it = sources_.emplace(msg->source_id, SourceSequence(p.sequence, authenticated_frames())).first;
+    frame_rate_.Track(msg->source_id);
+  }
   const int64_t before = it->second.seq();
   it->second.Commit(seq, msg->epoch, msg->seq, msg->utime);
   counters_.lost += seq.lost_delta;
@@ -122,41 +167,57 @@ bool FrameGate::Authenticate(const vdeform::rgbd_frame_t& msg, FrameDecision* d)
 
 ControlDecision FrameGate::OnControl(const void* data, size_t size, int64_t now_us) {
   ControlDecision d;
-  auto msg = DecodeLcm<vdeform::control_t>(data, size);
-  if (!msg.ok()) {
+  auto refuse = [&](Status status) {
     ++counters_.control_refused;
-    d.status = msg.status();
+    d.status = std::move(status);
     return d;
-  }
+  };
+  auto msg = DecodeLcm<vdeform::control_t>(data, size);
+  if (!msg.ok()) return refuse(msg.status());
   d.msg = std::move(msg).value();
   const int8_t cmd = d.msg.command;
   if (cmd != vdeform::control_t::COMMAND_RESET && cmd != vdeform::control_t::COMMAND_SAVE_SNAPSHOT &&
-      cmd != vdeform::control_t::COMMAND_REQUEST_MESH) {
-    ++counters_.control_refused;
-    d.status = InvalidArgument("unknown control command " + std::to_string(int(cmd)));
-    return d;
-  }
+      cmd != vdeform::control_t::COMMAND_REQUEST_MESH)
+    return refuse(InvalidArgument("unknown control command " + std::to_string(int(cmd))));
   // REQUEST_MESH only republishes what viewers already receive: viewers stay read-only and
   // need no key. Commands that change or write state need the HMAC when a key is configured.
-  if (authenticated_control() && cmd != vdeform::control_t::COMMAND_REQUEST_MESH) {
-    Status s = VerifyControl(options_.control_key, d.msg);
+  const bool signed_command = authenticated_control() && cmd != vdeform::control_t::COMMAND_REQUEST_MESH;
+  if (signed_command) {
+    Status verified = VerifyControl(options_.control_key, d.msg);
+    if (!verified.ok()) return refuse(std::move(verified));
     // |utime - now| without overflow for any int64 values.
     const uint64_t skew = d.msg.utime >= now_us ? uint64_t(d.msg.utime) - uint64_t(now_us)
                                                  : uint64_t(now_us) - uint64_t(d.msg.utime);
-    if (s.ok() && skew > uint64_t(options_.control_max_skew_us))
-      s = PermissionDenied("control message time is " + std::to_string(skew / 1000) +
-                           " ms off the server's clock");
-    if (s.ok() && d.msg.utime <= last_control_utime_) s = PermissionDenied("control message replayed");
-    if (!s.ok()) {
-      ++counters_.control_refused;
-      d.status = s;
-      return d;
-    }
-    last_control_utime_ = d.msg.utime;
+    if (skew > uint64_t(options_.control_max_skew_us))
+      return refuse(PermissionDenied("control message time is " + std::to_string(skew / 1000) +
+                                     " ms off the server's clock"));
+    if (d.msg.utime <= last_control_utime_) return refuse(PermissionDenied("control message replayed"));
+  }
+  // After the HMAC: a forger's flood under a real sender's name does not spend that sender's rate.
+  if (!control_rate_.Allow(d.msg.sender, options_.clock())) {
+    ++counters_.control_rate_limited;
+    return refuse(Unavailable("control messages from '" + d.msg.sender + "' above " +
+                              std::to_string(options_.params.max_control_rate) + " Hz (--max-control-rate)"));
+  }
+  control_rate_.Track(d.msg.sender);
+  if (signed_command) last_control_utime_ = d.msg.utime;
+  if (cmd == vdeform::control_t::COMMAND_REQUEST_MESH) {
+    if (mesh_request_waiting_) ++counters_.mesh_requests_merged;
+    mesh_request_waiting_ = true;
   }
   ++counters_.control_accepted;
   d.status = Status::Ok();
   return d;
+}
+
+bool FrameGate::TakeMeshRequest() {
+  if (!mesh_request_waiting_) return false;
+  const int64_t now = options_.clock();
+  if (last_mesh_served_us_ && now - *last_mesh_served_us_ < kMeshRequestIntervalUs) return false;
+  mesh_request_waiting_ = false;
+  last_mesh_served_us_ = now;
+  ++counters_.mesh_requests_served;
+  return true;
 }
 
 }  // namespace vd

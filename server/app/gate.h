@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "rate_limit.h"
 #include "sequence.h"
 #include "vd/common/auth.h"
 #include "vd/common/flags.h"
@@ -25,6 +26,15 @@ struct GateParams {
   int64_t max_frame_pixels = 2048 * 2048;
   // Forward jumps of a source's sequence numbers and how they are confirmed.
   SequenceParams sequence;
+  // Frames per second taken from one source, and control messages per second from one sender, in
+  // bursts of up to a second's worth; the rest are counted and dropped before they are decoded.
+  // 100 Hz covers any RGB-D sensor with room for a re-send; 10 Hz is far above what a person or a
+  // script sends.
+  double max_frame_rate = 100.0;
+  double max_control_rate = 10.0;
+  // Sources (and control senders) with state of their own: sequence, rate. A frame of one more
+  // source is refused ("too_many_sources"); one more sender shares one rate with all the others.
+  int64_t max_sources = 64;
 
   void Bind(FlagParser* flags);
   Status Validate() const;
@@ -42,7 +52,14 @@ struct GateOptions {
   // Authenticated commands older or newer than this (vs the server's clock) are refused, which
   // with the strictly increasing utime check stops replays.
   int64_t control_max_skew_us = 30'000'000;
+  // The rate limits' clock; empty = SteadyMicros.
+  MonotonicClock clock;
 };
+
+// REQUEST_MESH makes the server multicast its meshes (a 50-byte datagram for several hundred KB):
+// it serves at most one per this interval, whoever asks; requests in between are merged into one
+// served when the interval ends.
+inline constexpr int64_t kMeshRequestIntervalUs = 1'000'000;
 
 // Per-frame outcome.
 enum class FrameVerdict {
@@ -56,6 +73,8 @@ enum class FrameVerdict {
   // Its sequence number jumped further ahead than GateParams::sequence.max_jump: held back until
   // the frames after it confirm the jump.
   kHeld,
+  // Above GateParams::max_frame_rate for its source: dropped undecoded.
+  kRateLimited,
 };
 
 struct FrameDecision {
@@ -89,17 +108,27 @@ struct GateCounters {
   int64_t held = 0;
   int64_t jumps = 0;
   int64_t foreign = 0;
+  // Frames above their source's rate.
+  int64_t rate_limited = 0;
   int64_t control_accepted = 0;
+  // Control messages refused, of which control_rate_limited for the sender's rate.
   int64_t control_refused = 0;
+  int64_t control_rate_limited = 0;
+  // REQUEST_MESH: republications made, and requests merged into one already waiting.
+  int64_t mesh_requests_served = 0;
+  int64_t mesh_requests_merged = 0;
 };
 
 class FrameGate {
  public:
-  explicit FrameGate(GateOptions options) : options_(std::move(options)) {}
+  explicit FrameGate(GateOptions options);
 
   FrameDecision OnFrame(const void* data, size_t size);
-  // now_us: the server's clock (microseconds since the epoch).
+  // now_us: the server's clock (microseconds since the epoch), for the signed commands' skew.
   ControlDecision OnControl(const void* data, size_t size, int64_t now_us);
+  // Whether the meshes should be republished now: a REQUEST_MESH is waiting and none was served in
+  // the last kMeshRequestIntervalUs. The node asks on every tick.
+  bool TakeMeshRequest();
 
   const GateCounters& counters() const { return counters_; }
   bool authenticated_control() const { return !options_.control_key.empty(); }
@@ -114,8 +143,13 @@ class FrameGate {
 
   GateOptions options_;
   GateCounters counters_;
+  // At most params.max_sources entries: created for a source's first valid frame.
   std::map<std::string, SourceSequence> sources_;
+  KeyedRateLimiter frame_rate_;
+  KeyedRateLimiter control_rate_;
   int64_t last_control_utime_ = 0;
+  bool mesh_request_waiting_ = false;
+  std::optional<int64_t> last_mesh_served_us_;
 };
 
 // Short reason names for the status message's rejection breakdown.

@@ -31,7 +31,7 @@ bool Takes(SequenceVerdict v) {
 }
 
 SourceSequence::SourceSequence(const SequenceParams& params, bool authenticated)
-    : params_(params), authenticated_(authenticated), received_(size_t((params.max_jump + 63) / 64)) {
+    : params_(params), authenticated_(authenticated), received_(2 * size_t(params.max_jump / 64 + 1)) {
   assert(params.Validate().ok());
 }
 
@@ -40,12 +40,12 @@ bool SourceSequence::ExtendsHeld(int64_t seq) const {
 }
 
 bool SourceSequence::Received(int64_t seq) const {
-  const uint64_t bit = uint64_t(seq) % window_bits();
+  const uint64_t bit = uint64_t(seq) % (uint64_t(received_.size()) * 64);
   return (received_[bit / 64] >> (bit % 64)) & 1;
 }
 
 void SourceSequence::SetReceived(int64_t seq, bool received) {
-  const uint64_t bit = uint64_t(seq) % window_bits();
+  const uint64_t bit = uint64_t(seq) % (uint64_t(received_.size()) * 64);
   const uint64_t mask = uint64_t(1) << (bit % 64);
   if (received) received_[bit / 64] |= mask;
   else received_[bit / 64] &= ~mask;
@@ -75,13 +75,17 @@ SequenceDecision SourceSequence::Classify(int64_t epoch, int64_t seq, int64_t ut
   if (seq > seq_) {
     // Both are >= 0: the difference cannot overflow.
     const int64_t ahead = seq - seq_;
-    if (ahead <= params_.max_jump) return {V::kNext, ahead - 1};
+    if (ahead <= params_.max_jump) {
+      int64_t skipped = 0;
+      for (int64_t s = seq_ + 1; s < seq; ++s) skipped += Received(s) ? 0 : 1;
+      return {V::kNext, skipped};
+    }
     if (params_.confirm_frames <= 1 || (ExtendsHeld(seq) && held_count_ + 1 >= params_.confirm_frames))
       return {V::kJumpAdopted, 0};
     return {V::kJumpHeld, 0};
   }
   // Older than the window: whether it was received is no longer known; it is late either way.
-  if (uint64_t(seq_ - seq) >= window_bits()) return {V::kLate, 0};
+  if (seq_ - seq >= window_half()) return {V::kLate, 0};
   if (Received(seq)) return {V::kDuplicate, 0};
   return {V::kLate, seq > floor_ ? -1 : 0};
 }
@@ -95,8 +99,9 @@ void SourceSequence::Commit(const SequenceDecision& d, int64_t epoch, int64_t se
       StartRun(epoch, seq, utime);
       break;
     case V::kNext:
-      // The numbers skipped take the ring slots of numbers now older than the window.
-      for (int64_t s = seq_ + 1; s < seq; ++s) SetReceived(s, false);
+      // The numbers leaving the window behind free their slots for those entering it ahead.
+      for (int64_t s = std::max<int64_t>(0, seq_ - window_half() + 1); s <= seq - window_half(); ++s)
+        SetReceived(s, false);
       SetReceived(seq, true);
       seq_ = seq;
       utime_ = std::max(utime_, utime);
@@ -108,12 +113,16 @@ void SourceSequence::Commit(const SequenceDecision& d, int64_t epoch, int64_t se
       held_seq_ = seq;
       break;
     case V::kLate:
-      if (uint64_t(seq_ - seq) < window_bits()) SetReceived(seq, true);
+      if (seq_ - seq < window_half()) SetReceived(seq, true);
       break;
     case V::kDuplicate:
     case V::kReplayed:
       break;
   }
+}
+
+void SourceSequence::NoteDropped(const SequenceDecision& d, int64_t seq) {
+  if (d.verdict == SequenceVerdict::kNext) SetReceived(seq, true);
 }
 
 }  // namespace vd

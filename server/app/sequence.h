@@ -62,6 +62,9 @@ class SourceSequence {
   // Applies Classify's decision for the same frame (the gate commits only frames that validated,
   // so garbage cannot move the sequence; duplicates and late frames it commits undecoded).
   void Commit(const SequenceDecision& d, int64_t epoch, int64_t seq, int64_t utime);
+  // A frame Classify called kNext that the gate dropped (above its source's rate): the number is
+  // received, so it is never counted as lost, and a copy of it later is a duplicate.
+  void NoteDropped(const SequenceDecision& d, int64_t seq);
 
   // The baseline: the newest taken sequence number (-1 before the first frame).
   int64_t seq() const { return seq_; }
@@ -71,8 +74,9 @@ class SourceSequence {
  private:
   // Whether `seq` would extend the held jump.
   bool ExtendsHeld(int64_t seq) const;
-  // The received-or-not bits of the last window_bits() numbers up to the baseline.
-  size_t window_bits() const { return received_.size() * 64; }
+  // The window: the numbers less than window_half() from the baseline, either side (more than
+  // max_jump, so every kNext, the numbers it skips and frames dropped before it lie inside).
+  int64_t window_half() const { return int64_t(received_.size()) * 32; }
   bool Received(int64_t seq) const;
   void SetReceived(int64_t seq, bool received);
   void StartRun(int64_t epoch, int64_t seq, int64_t utime);
@@ -86,7 +90,7 @@ class SourceSequence {
   // The baseline a run, restart or adopted jump began at: numbers at or below it were never counted
   // as lost, so a late one there takes nothing back.
   int64_t floor_ = 0;
-  // A ring of one bit per sequence number, (seq_ - window_bits(), seq_]: received or not.
+  // A ring of one bit per sequence number of the window, received or not; every other bit is 0.
   std::vector<uint64_t> received_;
   // The held jump: its newest number and how many frames in a row it has.
   int64_t held_seq_ = 0;

@@ -250,7 +250,8 @@ TEST(GateParamsTest, FlagsBindAndBoundsAreChecked) {
   FlagParser flags("test");
   p.Bind(&flags);
   bool help = false;
-  ASSERT_TRUE(flags.Parse({"--max-seq-jump", "900", "--seq-jump-confirm", "5", "--max-frame-pixels", "100"}, &help).ok());
+  ASSERT_TRUE(
+      flags.Parse({"--max-seq-jump", "900", "--seq-jump-confirm", "5", "--max-frame-pixels", "100"}, &help).ok());
   EXPECT_EQ(p.sequence.max_jump, 900);
   EXPECT_EQ(p.sequence.confirm_frames, 5);
   EXPECT_EQ(p.max_frame_pixels, 100);

@@ -296,6 +296,65 @@ TEST_F(SignedNodeTest, OnlySignedFramesReachTheModel) {
   EXPECT_EQ(st.model_frames, 2);
 }
 
+// The node with the gate's clock in the test's hand: REQUEST_MESH republishes the meshes at most
+// once a second however many viewers ask, and frames above a source's rate are counted and dropped.
+class ClockedNodeTest : public NodeTest {
+ protected:
+  void SetUp() override {
+    gate_.clock = [this] { return now_us_; };
+    gate_.params.max_frame_rate = 1.0;
+    NodeTest::SetUp();
+  }
+  int64_t now_us_ = 1'000'000;
+};
+
+TEST_F(ClockedNodeTest, MeshRequestsAreServedOnceASecondAndFramesAboveTheRateDropped) {
+  auto first = Message(0);
+  lcm_.publish(kFrameChannel, &first);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  Pump();
+  auto republished = [&] {
+    const size_t before = inbox_.meshes.size();
+    node_->Tick();
+    Pump();
+    return inbox_.meshes.size() - before;
+  };
+  vdeform::control_t c{};
+  c.utime = 0;
+  c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
+  c.auth_size = 0;
+  for (int i = 0; i < 20; ++i) {
+    c.sender = "viewer-" + std::to_string(i % 4);
+    lcm_.publish(kControlChannel, &c);
+  }
+  Pump();
+  EXPECT_EQ(republished(), 2u) << "live and canonical, once for all 20 requests";
+  EXPECT_EQ(republished(), 0u);
+  lcm_.publish(kControlChannel, &c);
+  Pump();
+  now_us_ += 999'999;
+  EXPECT_EQ(republished(), 0u) << "within the second";
+  now_us_ += 1;
+  EXPECT_EQ(republished(), 2u);
+  EXPECT_EQ(republished(), 0u);
+  // Frames: the source's rate is 1 Hz (a burst of 1 after its first frame): of 3 more frames at
+  // once, 1 is taken (it waits for the worker) and 2 are dropped, their numbers not lost.
+  for (int64_t seq = 1; seq <= 3; ++seq) {
+    auto m = Message(seq);
+    lcm_.publish(kFrameChannel, &m);
+  }
+  Pump();
+  const auto& st = Status();
+  EXPECT_EQ(st.mesh_requests_merged, 19);
+  EXPECT_EQ(st.control_refused, 0);
+  EXPECT_EQ(st.control_rate_limited, 0);
+  EXPECT_EQ(st.frames_received, 4);
+  EXPECT_EQ(st.frames_rate_limited, 2);
+  EXPECT_EQ(st.frames_lost, 0);
+  EXPECT_EQ(st.frames_processed, 1);
+}
+
 // Serving until a signal. select() in the receive returns EINTR for a signal that arrives while it
 // waits: that is no error; the signal whose handler sets the stop flag (Ctrl-C) ends serving cleanly.
 std::atomic<bool> g_serve_stop{false};

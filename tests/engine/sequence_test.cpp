@@ -152,7 +152,7 @@ TEST(SequenceTest, AuthenticatedEarlierRunsAreReplays) {
 
 TEST(SequenceTest, NumbersOlderThanTheWindowAreLateWithoutTouchingLosses) {
   SequenceParams p;
-  p.max_jump = 64;  // a 64-number window
+  p.max_jump = 64;  // a window of 128 numbers either side of the baseline
   Feed f(p);
   f.Send(0);
   f.Send(60);   // 1..59 lost
@@ -165,6 +165,29 @@ TEST(SequenceTest, NumbersOlderThanTheWindowAreLateWithoutTouchingLosses) {
   EXPECT_EQ(f.Send(150), V::kLate);
   EXPECT_EQ(f.lost(), 59 * 3 - 1);
   EXPECT_EQ(f.Send(120), V::kDuplicate);
+}
+
+// The gate drops frames above their source's rate before decoding them: they were received, so
+// their numbers are not lost, and a copy of one later is a duplicate.
+TEST(SequenceTest, DroppedFramesAreReceivedNotLost) {
+  SourceSequence s(SequenceParams{}, false);
+  auto send = [&](int64_t seq, bool drop) {
+    const SequenceDecision d = s.Classify(1, seq, 1000 + seq);
+    if (drop) s.NoteDropped(d, seq);
+    else s.Commit(d, 1, seq, 1000 + seq);
+    return d;
+  };
+  send(0, false);
+  EXPECT_EQ(send(1, true).verdict, V::kNext);
+  EXPECT_EQ(send(2, true).verdict, V::kNext);
+  const SequenceDecision three = send(3, false);
+  EXPECT_EQ(three.verdict, V::kNext);
+  EXPECT_EQ(three.lost_delta, 0) << "1 and 2 arrived (and were dropped)";
+  EXPECT_EQ(send(5, false).lost_delta, 1) << "4 never arrived";
+  EXPECT_EQ(send(2, false).verdict, V::kDuplicate);
+  // A dropped held jump leaves nothing behind.
+  EXPECT_EQ(send(100000, true).verdict, V::kJumpHeld);
+  EXPECT_FALSE(s.holding_jump());
 }
 
 TEST(SequenceTest, ParamsAreValidatedWithTheirFlags) {

@@ -3,13 +3,18 @@
 // records [kind byte][u16 length][bytes]: kind even = a VDEFORM_FRAMES message, odd = a
 // VDEFORM_CONTROL message. Two gates take the same records: one open (source filter and control
 // key only), one that also requires frames signed under per-source keys (capture-a, capture-b).
-// Invariants: every frame is counted exactly once (accepted, rejected, stale, foreign or held); an
+// The gates' clock moves 10 ms per message, so their rate limits (frames per source, control
+// messages per sender, one REQUEST_MESH served per second) depend on the input alone.
+// Invariants: every frame is counted exactly once (accepted, rejected, stale, foreign, held or
+// rate-limited); at most max_sources sources are ever accepted; REQUEST_MESH is served at most once
+// per simulated second; an
 // accepted frame is valid, from an accepted source, and its seq is newer than the source's last
 // accepted one unless the gate counted a restart; a held frame is more than max_jump ahead of it;
 // the lost count stays within [0, (max_jump - 1) x accepted frames] whatever the numbers; with frame
 // keys an accepted frame verifies under its source's key; a state-changing control command is
 // accepted only with a valid HMAC and a utime newer than any accepted before.
 #include <map>
+#include <optional>
 
 #include "fuzz_util.h"
 #include "gate.h"
@@ -23,9 +28,14 @@ const char* const kFrameKeyFile =
     "capture-a 6161616161616161616161616161616161616161616161616161616161616161\n"
     "capture-b 6262626262626262626262626262626262626262626262626262626262626262\n";
 
+int64_t g_clock_us = 0;
+int64_t Tick() { return g_clock_us += 10'000; }
+
 void RunGate(vd::FrameGate* gate, const uint8_t* data, size_t size) {
+  g_clock_us = 0;
   const int64_t max_jump = vd::SequenceParams().max_jump;
-  int64_t frames = 0, accepted = 0, stale = 0, foreign = 0, rejected = 0, held = 0;
+  int64_t frames = 0, accepted = 0, stale = 0, foreign = 0, rejected = 0, held = 0, limited = 0;
+  std::optional<int64_t> last_served_us;
   std::map<std::string, int64_t> last_seq;
   int64_t last_control_utime = 0;
   size_t pos = 0;
@@ -69,6 +79,10 @@ void RunGate(vd::FrameGate* gate, const uint8_t* data, size_t size) {
           ++foreign;
           VD_FUZZ_CHECK(!d.frame);
           break;
+        case vd::FrameVerdict::kRateLimited:
+          ++limited;
+          VD_FUZZ_CHECK(!d.frame);
+          break;
         case vd::FrameVerdict::kHeld: {
           ++held;
           VD_FUZZ_CHECK(!d.frame);
@@ -82,6 +96,10 @@ void RunGate(vd::FrameGate* gate, const uint8_t* data, size_t size) {
       VD_FUZZ_CHECK(gate->counters().lost >= 0 && gate->counters().lost <= (max_jump - 1) * accepted);
     } else {
       vd::ControlDecision d = gate->OnControl(msg, len, kNowUs);
+      if (gate->TakeMeshRequest()) {
+        VD_FUZZ_CHECK(!last_served_us || g_clock_us - *last_served_us >= vd::kMeshRequestIntervalUs);
+        last_served_us = g_clock_us;
+      }
       if (!d.status.ok()) continue;
       const int8_t c = d.msg.command;
       VD_FUZZ_CHECK(c == vdeform::control_t::COMMAND_RESET || c == vdeform::control_t::COMMAND_SAVE_SNAPSHOT ||
@@ -96,7 +114,9 @@ void RunGate(vd::FrameGate* gate, const uint8_t* data, size_t size) {
   const vd::GateCounters& c = gate->counters();
   VD_FUZZ_CHECK(c.received == frames);
   VD_FUZZ_CHECK(c.rejected == rejected && c.foreign == foreign && c.duplicates + c.reordered == stale);
-  VD_FUZZ_CHECK(c.held == held && accepted + rejected + stale + foreign + held == frames);
+  VD_FUZZ_CHECK(c.held == held && c.rate_limited == limited);
+  VD_FUZZ_CHECK(accepted + rejected + stale + foreign + held + limited == frames);
+  VD_FUZZ_CHECK(int64_t(last_seq.size()) <= vd::GateParams().max_sources);
 }
 
 }  // namespace
@@ -108,6 +128,7 @@ extern "C" int LLVMFuzzerInitialize(int*, char***) {
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   vd::GateOptions options;
+  options.clock = Tick;
   options.control_key = kKey;
   options.accept_sources = {"capture-a", "capture-b", ""};
   vd::FrameGate open(options);

@@ -177,8 +177,8 @@ TEST(AuthTest, FrameKeyFilesHoldOneKeyOrOnePerSource) {
   EXPECT_FALSE(one->per_source());
   EXPECT_EQ(one->size(), 1u);
   ASSERT_NE(one->For("anything"), nullptr);
-  EXPECT_EQ(*one->For("anything"), std::string("\x00\x11\x22\x33\x44\x55\x66\x77\x88\x99\xaa\xbb\xcc\xdd\xee\xff", 16) +
-                                        std::string("\x00\x11\x22\x33\x44\x55\x66\x77\x88\x99\xaa\xbb\xcc\xdd\xee\xff", 16));
+  const std::string half("\x00\x11\x22\x33\x44\x55\x66\x77\x88\x99\xaa\xbb\xcc\xdd\xee\xff", 16);
+  EXPECT_EQ(*one->For("anything"), half + half);
   auto per = FrameKeys::Parse("left " + kHexA + "\nright\t" + kHexB + "\n", "k");
   ASSERT_TRUE(per.ok()) << per.status().ToString();
   EXPECT_TRUE(per->per_source());
@@ -200,7 +200,8 @@ TEST(AuthTest, BadFrameKeyFilesNameTheFileAndLine) {
       {"\n" + kHexA.substr(2) + "\n", "'keys.txt' line 2: the key has 62 characters; 64 hex digits"},
       {kHexA + "00\n", "'keys.txt' line 1: the key has 66 characters"},
       {"cam " + kHexA.substr(0, 63) + "g\n", "'keys.txt' line 1: the key is not hexadecimal (character 64)"},
-      {"a " + kHexA + "\nb " + kHexB + "\na " + kHexB + "\n", "'keys.txt' line 3: source 'a' already has a key on line 1"},
+      {"a " + kHexA + "\nb " + kHexB + "\na " + kHexB + "\n",
+       "'keys.txt' line 3: source 'a' already has a key on line 1"},
       {kHexA + "\n" + kHexB + "\n", "'keys.txt' line 2: a second key for every source (the first is on line 1)"},
       {"a " + kHexA + "\n" + kHexB + "\n", "'keys.txt' line 2: a key for every source among SOURCE_ID KEY lines"},
       {kHexA + "\na " + kHexB + "\n", "'keys.txt' line 2: SOURCE_ID KEY after the key for every source on line 1"},
