@@ -1,5 +1,7 @@
 // FrameGate: what the node accepts from the network. Sequence numbers (duplicates, reordering,
-// losses, client restarts), source filtering, and authenticated control with replay protection.
+// losses, client restarts, jumps), source filtering, signed frames, authenticated control with
+// replay protection, and the rate limits (frames per source, control per sender, REQUEST_MESH)
+// on a clock the test moves.
 #include <gtest/gtest.h>
 
 #include "gate.h"
@@ -7,6 +9,14 @@
 
 namespace vd {
 namespace {
+
+// A clock the test moves.
+struct FakeClock {
+  int64_t now_us = 1'000'000;
+  MonotonicClock fn() {
+    return [this] { return now_us; };
+  }
+};
 
 class GateTest : public ::testing::Test {
  protected:
@@ -59,6 +69,7 @@ class GateTest : public ::testing::Test {
     return d.verdict;
   }
   RgbdFrame frame_;
+  FakeClock clock_;
 };
 
 TEST_F(GateTest, SequenceNumbersCountDuplicatesReordersLossesAndRestarts) {
@@ -245,6 +256,46 @@ TEST_F(GateTest, AForgedHugeSequenceNumberNeitherStallsNorInflates) {
   EXPECT_EQ(c.rejected, 1);
 }
 
+TEST_F(GateTest, FramesAboveTheSourceRateAreDroppedAndNotCountedLost) {
+  GateOptions o;
+  o.params.max_frame_rate = 10.0;
+  o.clock = clock_.fn();
+  FrameGate g(o);
+  // The first frame spends the limiter new sources share; the source then has its own burst of 10.
+  int accepted = 0, limited = 0;
+  for (int64_t s = 0; s < 15; ++s) {
+    const FrameVerdict v = Send(&g, "cam", s, 1000 + s);
+    accepted += v == FrameVerdict::kAccept;
+    limited += v == FrameVerdict::kRateLimited;
+  }
+  EXPECT_EQ(accepted, 11);
+  EXPECT_EQ(limited, 4);
+  clock_.now_us += 100'000;  // one more frame's worth
+  EXPECT_EQ(Send(&g, "cam", 15, 1015), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "cam", 16, 1016), FrameVerdict::kRateLimited);
+  EXPECT_EQ(Send(&g, "cam", 12, 1012), FrameVerdict::kStale) << "dropped for its rate, received all the same";
+  const GateCounters& c = g.counters();
+  EXPECT_EQ(c.received, 18);
+  EXPECT_EQ(c.rate_limited, 5);
+  EXPECT_EQ(c.lost, 0) << "11..14 arrived: not lost";
+  EXPECT_EQ(c.duplicates, 1);
+  // Stale frames spend no rate: they are never decoded.
+  clock_.now_us += 100'000;
+  EXPECT_EQ(Send(&g, "cam", 17, 1017), FrameVerdict::kAccept);
+}
+
+TEST_F(GateTest, SourcesBeyondTheBoundAreRefused) {
+  GateOptions o;
+  o.params.max_sources = 2;
+  o.clock = clock_.fn();
+  FrameGate g(o);
+  EXPECT_EQ(Send(&g, "a", 0, 1000), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "b", 0, 1000), FrameVerdict::kAccept);
+  EXPECT_EQ(Send(&g, "c", 0, 1000), FrameVerdict::kRejected);
+  EXPECT_EQ(Send(&g, "a", 1, 1001), FrameVerdict::kAccept) << "known sources go on";
+  EXPECT_EQ(g.counters().rejected, 1);
+}
+
 TEST(GateParamsTest, FlagsBindAndBoundsAreChecked) {
   GateParams p;
   FlagParser flags("test");
@@ -280,6 +331,14 @@ vdeform::control_t Control(int8_t command, int64_t utime, const std::string& pat
   m.sender = "test";
   m.auth_size = 0;
   return m;
+}
+
+// An unsigned command from `sender`, at the gate's clock.
+Status SendControl(FrameGate* g, int8_t command, const std::string& sender) {
+  vdeform::control_t m = Control(command, 1);
+  m.sender = sender;
+  const auto b = Encode(m);
+  return g->OnControl(b.data(), b.size(), 0).status;
 }
 
 TEST(GateControlTest, WithoutAKeyEveryKnownCommandIsTaken) {
@@ -327,6 +386,56 @@ TEST(GateControlTest, WithAKeyStateChangesNeedAFreshValidHmac) {
   EXPECT_TRUE(send(snap).ok());
   EXPECT_EQ(g.counters().control_accepted, 3);
   EXPECT_EQ(g.counters().control_refused, 5);
+}
+
+TEST(GateControlTest, ControlMessagesAboveTheSenderRateAreRefusedAndCounted) {
+  FakeClock clock_;
+  GateOptions o;
+  o.params.max_control_rate = 2.0;
+  o.clock = clock_.fn();
+  FrameGate g(o);
+  const int8_t reset = vdeform::control_t::COMMAND_RESET;
+  // First message of a sender: the shared limiter (burst 2); then the sender's own (burst 2).
+  EXPECT_TRUE(SendControl(&g, reset, "ops").ok());
+  EXPECT_TRUE(SendControl(&g, reset, "ops").ok());
+  EXPECT_TRUE(SendControl(&g, reset, "ops").ok());
+  const Status limited = SendControl(&g, reset, "ops");
+  EXPECT_FALSE(limited.ok());
+  EXPECT_NE(limited.message().find("--max-control-rate"), std::string::npos) << limited.message();
+  EXPECT_TRUE(SendControl(&g, reset, "viewer").ok()) << "another sender has its own rate";
+  clock_.now_us += 500'000;
+  EXPECT_TRUE(SendControl(&g, reset, "ops").ok());
+  EXPECT_FALSE(SendControl(&g, reset, "ops").ok());
+  const GateCounters& c = g.counters();
+  EXPECT_EQ(c.control_accepted, 5);
+  EXPECT_EQ(c.control_refused, 2);
+  EXPECT_EQ(c.control_rate_limited, 2);
+}
+
+TEST(GateControlTest, MeshRequestsAreServedAtMostOnceASecondInAll) {
+  FakeClock clock_;
+  GateOptions o;
+  o.clock = clock_.fn();
+  FrameGate g(o);
+  const int8_t request = vdeform::control_t::COMMAND_REQUEST_MESH;
+  EXPECT_FALSE(g.TakeMeshRequest()) << "nothing asked";
+  EXPECT_TRUE(SendControl(&g, request, "viewer-1").ok());
+  EXPECT_TRUE(g.TakeMeshRequest()) << "the first request is served at once";
+  EXPECT_FALSE(g.TakeMeshRequest());
+  // 50 requests from 5 viewers within the next second (each within its sender's rate): one
+  // republication when the second ends.
+  for (int i = 0; i < 50; ++i) EXPECT_TRUE(SendControl(&g, request, "viewer-" + std::to_string(i % 5)).ok()) << i;
+  clock_.now_us += 999'999;
+  EXPECT_FALSE(g.TakeMeshRequest());
+  clock_.now_us += 1;
+  EXPECT_TRUE(g.TakeMeshRequest());
+  EXPECT_FALSE(g.TakeMeshRequest());
+  clock_.now_us += 10'000'000;
+  EXPECT_FALSE(g.TakeMeshRequest()) << "no request waiting";
+  const GateCounters& c = g.counters();
+  EXPECT_EQ(c.mesh_requests_served, 2);
+  EXPECT_EQ(c.control_accepted, 51);
+  EXPECT_EQ(c.mesh_requests_merged, 49) << "all but the first of the flood waited for the one served";
 }
 
 }  // namespace
