@@ -17,6 +17,7 @@
 #include "vd/capture/pacing.h"
 #include "vd/capture/source.h"
 #include "vd/capture/synthetic.h"
+#include "vd/common/auth.h"
 #include "vd/common/codecs.h"
 #include "vd/common/flags.h"
 #include "vd/common/log.h"
@@ -49,6 +50,9 @@ struct Args {
   int lockstep_retries = 3;
   FrameEncodeOptions encode;
   std::string source_id;
+  // --frame-key-file, and the key of our source id read from it (empty = frames go unsigned).
+  std::string frame_key_file;
+  std::string frame_key;
   std::string lcm_url;
   std::string write_dir;
   bool quiet = false;
@@ -93,6 +97,10 @@ void Bind(FlagParser* f, Args* a) {
   f->Add("source-id", &a->source_id, "Source id in every frame (default capture-<hostname>-<pid>)", "ID");
   f->Add("lcm-url", &a->lcm_url,
          "LCM URL (default: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304)", "URL");
+  f->Add("frame-key-file", &a->frame_key_file,
+         "Sign every frame with HMAC-SHA256 under the key for --source-id in FILE (the server's --frame-key-file: "
+         "one line KEY for every source, or SOURCE_ID KEY lines; KEY is 64 hex digits, mode 600); empty = unsigned",
+         "FILE");
   f->Section("Other");
   f->Add("write", &a->write_dir,
          "With a synthetic source: write the scene as a VolumeDeform-layout folder (colour, depth, intrinsics.txt, "
@@ -122,6 +130,15 @@ Status Finish(const FlagParser& flags, Args* args) {
     char host[256] = {0};
     if (gethostname(host, sizeof(host) - 1) != 0) std::snprintf(host, sizeof(host), "unknown");
     a.source_id = "capture-" + std::string(host) + "-" + std::to_string(getpid());
+  }
+  if (!a.frame_key_file.empty()) {
+    if (!a.write_dir.empty()) return InvalidArgument("--frame-key-file does not apply to --write");
+    VD_ASSIGN_OR_RETURN(const FrameKeys keys, ReadFrameKeys(a.frame_key_file));
+    const std::string* key = keys.For(a.source_id);
+    if (key == nullptr)
+      return InvalidArgument("frame key file '" + a.frame_key_file + "' has no key for source '" + a.source_id +
+                             "' (give --source-id, or add a line '" + a.source_id + " KEY')");
+    a.frame_key = *key;
   }
   return Status::Ok();
 }
@@ -192,7 +209,7 @@ int Run(const Args& a) {
   VD_LOG_INFO << "publishing on " << kFrameChannel << " at " << url << " as '" << a.source_id << "', "
               << (pacing.fps > 0 ? std::to_string(pacing.fps) + " fps" : std::string("max rate"))
               << (pacing.lockstep ? ", lockstep" : "") << ", depth " << DepthEncodingName(a.encode.depth)
-              << ", colour " << ColorEncodingName(a.encode.color);
+              << ", colour " << ColorEncodingName(a.encode.color) << (a.frame_key.empty() ? "" : ", signed");
 
   struct sigaction action = {};
   action.sa_handler = OnSignal;
@@ -200,6 +217,9 @@ int Run(const Args& a) {
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
 
+  // (epoch, seq) names each frame of this run: the server tells our restart (a new epoch) from
+  // a recording of an earlier run played back.
+  const int64_t epoch = RandomEpoch();
   const int64_t total = (*source)->NumFrames();
   const bool progress = !a.quiet && isatty(STDERR_FILENO) && total > 0;
   const auto t0 = std::chrono::steady_clock::now();
@@ -222,6 +242,13 @@ int Run(const Args& a) {
     frame.source_id = a.source_id;
     frame.utime = NowMicros();
     auto msg = FrameToMessage(frame, a.encode);
+    if (msg.ok()) {
+      msg->epoch = epoch;
+      if (!a.frame_key.empty()) {
+        const Status signed_ok = SignFrame(a.frame_key, &*msg);
+        if (!signed_ok.ok()) msg = signed_ok;
+      }
+    }
     if (!msg.ok()) {
       if (progress) std::fprintf(stderr, "\n");
       std::fprintf(stderr, "vdeform-capture: error: encoding frame %lld: %s\n", static_cast<long long>(sent),

@@ -2,16 +2,23 @@
 
 #include <sys/stat.h>
 
+#include <chrono>
 #include <cstring>
 #include <fstream>
+#include <memory>
+#include <optional>
 #include <sstream>
+#include <vector>
 
+#include <openssl/core_names.h>
 #include <openssl/crypto.h>
 #include <openssl/evp.h>
-#include <openssl/hmac.h>
+#include <openssl/rand.h>
 
 namespace vd {
 namespace {
+
+constexpr size_t kMacBytes = Sha256Digest().size();
 
 void AppendU64(std::string* s, uint64_t v) {
   for (int i = 0; i < 8; ++i) s->push_back(char((v >> (8 * i)) & 0xff));
@@ -20,15 +27,114 @@ void AppendString(std::string* s, const std::string& v) {
   AppendU64(s, v.size());
   s->append(v);
 }
+void AppendFloat(std::string* s, float v) {
+  uint32_t bits = 0;
+  std::memcpy(&bits, &v, sizeof bits);
+  AppendU64(s, bits);
+}
+
+// HMAC-SHA256 fed in pieces (OpenSSL 3's EVP_MAC), so a frame's payload is hashed where it lies.
+// Final() is empty when OpenSSL failed (no provider for HMAC): callers refuse rather than compare.
+class HmacStream {
+ public:
+  explicit HmacStream(const std::string& key) {
+    static EVP_MAC* const mac = EVP_MAC_fetch(nullptr, OSSL_MAC_NAME_HMAC, nullptr);
+    ctx_.reset(mac ? EVP_MAC_CTX_new(mac) : nullptr);
+    char digest[] = OSSL_DIGEST_NAME_SHA2_256;
+    const OSSL_PARAM params[] = {OSSL_PARAM_construct_utf8_string(OSSL_MAC_PARAM_DIGEST, digest, 0),
+                                 OSSL_PARAM_construct_end()};
+    ok_ = ctx_ && EVP_MAC_init(ctx_.get(), reinterpret_cast<const unsigned char*>(key.data()), key.size(), params) == 1;
+  }
+  void Update(const void* data, size_t size) {
+    if (ok_ && size > 0) ok_ = EVP_MAC_update(ctx_.get(), static_cast<const unsigned char*>(data), size) == 1;
+  }
+  std::optional<Sha256Digest> Final() {
+    Sha256Digest out{};
+    size_t len = 0;
+    if (!ok_ || EVP_MAC_final(ctx_.get(), out.data(), &len, out.size()) != 1 || len != out.size()) return std::nullopt;
+    return out;
+  }
+
+ private:
+  struct Free {
+    void operator()(EVP_MAC_CTX* c) const { EVP_MAC_CTX_free(c); }
+  };
+  std::unique_ptr<EVP_MAC_CTX, Free> ctx_;
+  bool ok_ = false;
+};
+
+std::optional<Sha256Digest> Hmac(const std::string& key, const std::string& data) {
+  HmacStream mac(key);
+  mac.Update(data.data(), data.size());
+  return mac.Final();
+}
+
+std::optional<Sha256Digest> FrameHmac(const std::string& key, const vdeform::rgbd_frame_t& msg) {
+  std::string header = "vdeform-frame-v1";
+  AppendU64(&header, uint64_t(msg.utime));
+  AppendU64(&header, uint64_t(msg.seq));
+  AppendU64(&header, uint64_t(msg.epoch));
+  AppendString(&header, msg.source_id);
+  for (float v : {msg.fx, msg.fy, msg.cx, msg.cy, msg.depth_scale}) AppendFloat(&header, v);
+  AppendU64(&header, uint32_t(msg.width));
+  AppendU64(&header, uint32_t(msg.height));
+  header.push_back(char(msg.depth_encoding));
+  header.push_back(char(msg.color_encoding));
+  // The arrays' lengths go first, so no byte can move between depth and colour unnoticed.
+  AppendU64(&header, msg.depth_data.size());
+  AppendU64(&header, msg.color_data.size());
+  HmacStream mac(key);
+  mac.Update(header.data(), header.size());
+  mac.Update(msg.depth_data.data(), msg.depth_data.size());
+  mac.Update(msg.color_data.data(), msg.color_data.size());
+  return mac.Final();
+}
+
+// The MAC in a message's auth field against the expected one, in constant time.
+Status CheckMac(const std::optional<Sha256Digest>& expected, int32_t auth_size, const std::vector<uint8_t>& auth,
+                const char* what) {
+  if (auth_size != int32_t(kMacBytes) || auth.size() != kMacBytes)
+    return PermissionDenied(std::string(what) + " carries no HMAC-SHA256 (auth_size " + std::to_string(auth_size) +
+                            ")");
+  if (!expected) return Internal(std::string("OpenSSL could not compute the HMAC of a ") + what);
+  if (CRYPTO_memcmp(expected->data(), auth.data(), kMacBytes) != 0)
+    return PermissionDenied(std::string(what) + " HMAC does not match the key");
+  return Status::Ok();
+}
+
+// Writes the MAC into a message's auth field; leaves it unsigned (auth_size 0) if OpenSSL failed.
+bool SetMac(const std::optional<Sha256Digest>& mac, int32_t* auth_size, std::vector<uint8_t>* auth) {
+  auth->clear();
+  if (mac) auth->assign(mac->begin(), mac->end());
+  *auth_size = int32_t(auth->size());
+  return mac.has_value();
+}
+
+// The contents of a secret file, after checking it is a regular file only its owner can read.
+StatusOr<std::string> ReadPrivateFile(const std::string& path, const std::string& what) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) != 0) return NotFound(what + " '" + path + "': " + std::strerror(errno));
+  if (!S_ISREG(st.st_mode)) return InvalidArgument(what + " '" + path + "' is not a regular file");
+  if (st.st_mode & (S_IRWXG | S_IRWXO))
+    return PermissionDenied(what + " '" + path + "' is readable by group or others (chmod 600 it)");
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  if (!in) return Unavailable("cannot read " + what + " '" + path + "'");
+  return ss.str();
+}
+
+int HexDigit(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
 
 }  // namespace
 
 Sha256Digest HmacSha256(const std::string& key, const std::string& data) {
-  Sha256Digest out{};
-  unsigned int len = 0;
-  HMAC(EVP_sha256(), key.data(), int(key.size()), reinterpret_cast<const unsigned char*>(data.data()), data.size(),
-       out.data(), &len);
-  return out;
+  return Hmac(key, data).value_or(Sha256Digest{});
 }
 
 Sha256Digest Sha256(const void* data, size_t size) {
@@ -58,36 +164,105 @@ std::string ControlAuthBytes(const vdeform::control_t& msg) {
 }
 
 void SignControl(const std::string& key, vdeform::control_t* msg) {
-  const Sha256Digest mac = HmacSha256(key, ControlAuthBytes(*msg));
-  msg->auth.assign(mac.begin(), mac.end());
-  msg->auth_size = int32_t(mac.size());
+  SetMac(Hmac(key, ControlAuthBytes(*msg)), &msg->auth_size, &msg->auth);
 }
 
 Status VerifyControl(const std::string& key, const vdeform::control_t& msg) {
-  if (msg.auth_size != 32 || msg.auth.size() != 32)
-    return PermissionDenied("control message carries no HMAC-SHA256 (auth_size " + std::to_string(msg.auth_size) + ")");
-  const Sha256Digest mac = HmacSha256(key, ControlAuthBytes(msg));
-  if (CRYPTO_memcmp(mac.data(), msg.auth.data(), mac.size()) != 0)
-    return PermissionDenied("control message HMAC does not match the server's key");
+  return CheckMac(Hmac(key, ControlAuthBytes(msg)), msg.auth_size, msg.auth, "control message");
+}
+
+Status SignFrame(const std::string& key, vdeform::rgbd_frame_t* msg) {
+  if (!SetMac(FrameHmac(key, *msg), &msg->auth_size, &msg->auth))
+    return Internal("OpenSSL could not compute the HMAC of frame " + std::to_string(msg->seq));
   return Status::Ok();
 }
 
+Status VerifyFrame(const std::string& key, const vdeform::rgbd_frame_t& msg) {
+  // An unsigned frame is refused without hashing its payload.
+  if (msg.auth_size == 0) return PermissionDenied("frame carries no HMAC-SHA256 (auth_size 0)");
+  return CheckMac(FrameHmac(key, msg), msg.auth_size, msg.auth, "frame");
+}
+
+int64_t RandomEpoch() {
+  int64_t epoch = 0;
+  while (epoch == 0) {
+    if (RAND_bytes(reinterpret_cast<unsigned char*>(&epoch), sizeof epoch) != 1) {
+      // No entropy from OpenSSL: the clock keeps epochs of successive runs apart, which is all a
+      // restart needs (a replay is still refused by its older capture time).
+      epoch = std::chrono::steady_clock::now().time_since_epoch().count() | 1;
+    }
+  }
+  return epoch;
+}
+
 StatusOr<std::string> ReadControlKey(const std::string& path) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) return NotFound("control key file '" + path + "': " + std::strerror(errno));
-  if (!S_ISREG(st.st_mode)) return InvalidArgument("control key file '" + path + "' is not a regular file");
-  if (st.st_mode & (S_IRWXG | S_IRWXO))
-    return PermissionDenied("control key file '" + path + "' is readable by group or others (chmod 600 it)");
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  if (!in) return Unavailable("cannot read control key file '" + path + "'");
-  std::string key = ss.str();
+  VD_ASSIGN_OR_RETURN(std::string key, ReadPrivateFile(path, "control key file"));
   while (!key.empty() && std::isspace(static_cast<unsigned char>(key.back()))) key.pop_back();
   if (key.size() < kMinControlKeyBytes)
     return InvalidArgument("control key in '" + path + "' has " + std::to_string(key.size()) + " bytes; at least " +
                            std::to_string(kMinControlKeyBytes) + " are required");
   return key;
+}
+
+const std::string* FrameKeys::For(const std::string& source_id) const {
+  if (!all_.empty()) return &all_;
+  auto it = per_source_.find(source_id);
+  return it == per_source_.end() ? nullptr : &it->second;
+}
+
+StatusOr<FrameKeys> FrameKeys::Parse(const std::string& text, const std::string& path) {
+  FrameKeys keys;
+  std::map<std::string, int> line_of;
+  int single_line = 0;
+  std::istringstream in(text);
+  std::string line;
+  for (int number = 1; std::getline(in, line); ++number) {
+    const std::string where = "frame key file '" + path + "' line " + std::to_string(number) + ": ";
+    std::istringstream words(line);
+    std::vector<std::string> fields;
+    for (std::string w; words >> w;) fields.push_back(w);
+    if (fields.empty() || fields[0][0] == '#') continue;
+    if (fields.size() > 2)
+      return InvalidArgument(where + "expected KEY or SOURCE_ID KEY, got " + std::to_string(fields.size()) + " fields");
+    const std::string& hex = fields.back();
+    if (hex.size() != 2 * kFrameKeyBytes)
+      return InvalidArgument(where + "the key has " + std::to_string(hex.size()) + " characters; " +
+                             std::to_string(2 * kFrameKeyBytes) + " hex digits (" + std::to_string(kFrameKeyBytes) +
+                             " bytes, openssl rand -hex 32) are required");
+    std::string key;
+    for (size_t i = 0; i < hex.size(); i += 2) {
+      const int hi = HexDigit(hex[i]), lo = HexDigit(hex[i + 1]);
+      if (hi < 0 || lo < 0)
+        return InvalidArgument(where + "the key is not hexadecimal (character " +
+                               std::to_string(hi < 0 ? i + 1 : i + 2) + ")");
+      key.push_back(char(hi << 4 | lo));
+    }
+    if (fields.size() == 1) {
+      if (single_line != 0)
+        return InvalidArgument(where + "a second key for every source (the first is on line " +
+                               std::to_string(single_line) + ")");
+      if (!line_of.empty())
+        return InvalidArgument(where + "a key for every source among SOURCE_ID KEY lines; use one form");
+      single_line = number;
+      keys.all_ = std::move(key);
+      continue;
+    }
+    if (single_line != 0)
+      return InvalidArgument(where + "SOURCE_ID KEY after the key for every source on line " +
+                             std::to_string(single_line) + "; use one form");
+    auto [it, inserted] = line_of.emplace(fields[0], number);
+    if (!inserted)
+      return InvalidArgument(where + "source '" + fields[0] + "' already has a key on line " +
+                             std::to_string(it->second));
+    keys.per_source_[fields[0]] = std::move(key);
+  }
+  if (keys.empty()) return InvalidArgument("frame key file '" + path + "' holds no key");
+  return keys;
+}
+
+StatusOr<FrameKeys> ReadFrameKeys(const std::string& path) {
+  VD_ASSIGN_OR_RETURN(std::string text, ReadPrivateFile(path, "frame key file"));
+  return FrameKeys::Parse(text, path);
 }
 
 }  // namespace vd

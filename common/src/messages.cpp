@@ -114,14 +114,16 @@ Status ValidateLcmWire<vdeform::rgbd_frame_t>(const void* data, size_t size) {
   WireWalker w(data, size, "rgbd_frame_t");
   int32_t n = 0;
   VD_RETURN_IF_ERROR(w.Hash(vdeform::rgbd_frame_t::getHash()));
-  VD_RETURN_IF_ERROR(w.Skip(16, "utime/seq"));
+  VD_RETURN_IF_ERROR(w.Skip(3 * 8, "utime/seq/epoch"));
   VD_RETURN_IF_ERROR(w.String("source_id"));
   VD_RETURN_IF_ERROR(w.Skip(4 * 4 + 2 * 4 + 4 + 1, "intrinsics/depth_encoding"));
   VD_RETURN_IF_ERROR(w.Count("depth_size", &n));
   VD_RETURN_IF_ERROR(w.Array(n, 1, "depth_data"));
   VD_RETURN_IF_ERROR(w.Skip(1, "color_encoding"));
   VD_RETURN_IF_ERROR(w.Count("color_size", &n));
-  return w.Array(n, 1, "color_data");
+  VD_RETURN_IF_ERROR(w.Array(n, 1, "color_data"));
+  VD_RETURN_IF_ERROR(w.Count("auth_size", &n));
+  return w.Array(n, 1, "auth");
 }
 
 template <>
@@ -146,7 +148,7 @@ Status ValidateLcmWire<vdeform::server_status_t>(const void* data, size_t size) 
   VD_RETURN_IF_ERROR(w.Count("num_reject_reasons", &n));
   VD_RETURN_IF_ERROR(w.Strings(n, "reject_reason"));
   VD_RETURN_IF_ERROR(w.Array(n, 8, "reject_count"));
-  VD_RETURN_IF_ERROR(w.Skip(6 * 8, "sequence and control counters"));
+  VD_RETURN_IF_ERROR(w.Skip(11 * 8, "sequence, control, jump and rate counters"));
   VD_RETURN_IF_ERROR(w.Skip(8, "last_processed_seq"));
   VD_RETURN_IF_ERROR(w.String("last_source_id"));
   VD_RETURN_IF_ERROR(w.Count("num_stages", &n));
@@ -215,6 +217,8 @@ StatusOr<vdeform::rgbd_frame_t> FrameToMessage(const RgbdFrame& frame, const Fra
   vdeform::rgbd_frame_t msg;
   msg.utime = frame.utime;
   msg.seq = frame.seq;
+  // The capture client sets its epoch and signs the message (SignFrame) after encoding.
+  msg.epoch = 0;
   msg.source_id = frame.source_id;
   msg.fx = frame.intrinsics.fx;
   msg.fy = frame.intrinsics.fy;
@@ -235,6 +239,7 @@ StatusOr<vdeform::rgbd_frame_t> FrameToMessage(const RgbdFrame& frame, const Fra
                       std::to_string(kMaxPayloadBytes) + "; use a compressed encoding");
   msg.depth_size = static_cast<int32_t>(msg.depth_data.size());
   msg.color_size = static_cast<int32_t>(msg.color_data.size());
+  msg.auth_size = 0;
   return msg;
 }
 

@@ -55,6 +55,12 @@ class Node::Impl {
       case FrameVerdict::kStale:
         // Re-sent or reordered: an older view of the scene than the model already holds.
         return;
+      case FrameVerdict::kHeld:
+        if (gate_.counters().held == 1) VD_LOG_WARNING << d.status.message();
+        return;
+      case FrameVerdict::kRateLimited:
+        if (gate_.counters().rate_limited == 1) VD_LOG_WARNING << "dropping frames: " << d.status.message();
+        return;
       case FrameVerdict::kForeign:
         if (gate_.counters().foreign == 1) VD_LOG_WARNING << "ignoring frames: " << d.status.message();
         return;
@@ -85,8 +91,7 @@ class Node::Impl {
         cv_.notify_one();
         break;
       case vdeform::control_t::COMMAND_REQUEST_MESH:
-        mesh_requested_ = true;
-        break;
+        break;  // the gate keeps it; Tick serves it (TakeMeshRequest)
       default:
         break;  // the gate refuses unknown commands
     }
@@ -155,8 +160,7 @@ class Node::Impl {
     bool send_meshes = false;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      send_meshes = mesh_requested_;
-      mesh_requested_ = false;
+      send_meshes = gate_.TakeMeshRequest();
     }
     if (send_meshes) PublishMeshes(true);
     if (Clock::now() - last_status_ > std::chrono::milliseconds(500)) PublishStatus();
@@ -238,10 +242,13 @@ class Node::Impl {
     std::lock_guard<std::mutex> lock(mutex_);
     const GateCounters& g = gate_.counters();
     std::printf("vdeform-server: received %lld, processed %lld, dropped %lld, rejected %lld, duplicate %lld, "
-                "reordered %lld, lost %lld, foreign %lld frames; %lld control commands refused\n",
+                "reordered %lld, lost %lld, foreign %lld, held %lld, rate-limited %lld frames; %lld sequence jumps; "
+                "%lld control commands refused (%lld for rate); %lld mesh requests served, %lld merged\n",
                 (long long)g.received, (long long)processed_, (long long)dropped_, (long long)rejected_,
                 (long long)g.duplicates, (long long)g.reordered, (long long)g.lost, (long long)g.foreign,
-                (long long)g.control_refused);
+                (long long)g.held, (long long)g.rate_limited, (long long)g.jumps, (long long)g.control_refused,
+                (long long)g.control_rate_limited, (long long)g.mesh_requests_served,
+                (long long)g.mesh_requests_merged);
     if (stats_.count()) std::printf("stages (mean ms): %s\n", stats_.Summary().c_str());
     if (!latencies_ms_.empty())
       std::printf("latency capture -> mesh (last %zu frames): p50 %.0f ms, p95 %.0f ms\n", latencies_ms_.size(),
@@ -271,6 +278,11 @@ class Node::Impl {
       st.frames_foreign = g.foreign;
       st.source_restarts = g.source_restarts;
       st.control_refused = g.control_refused;
+      st.frames_held = g.held;
+      st.sequence_jumps = g.jumps;
+      st.frames_rate_limited = g.rate_limited;
+      st.control_rate_limited = g.control_rate_limited;
+      st.mesh_requests_merged = g.mesh_requests_merged;
       st.model_frames = model_frames_;
       st.checkpoint_utime = checkpoint_utime_;
       st.checkpoint_message = checkpoint_message_;
@@ -437,7 +449,6 @@ class Node::Impl {
   std::optional<RgbdFrame> mailbox_;
   // Control commands wait for the worker, which owns the engine.
   bool reset_requested_ = false;
-  bool mesh_requested_ = false;
   std::vector<std::string> snapshot_requests_;
   // Decides about every message before it reaches the engine; counts what it received.
   FrameGate gate_;
@@ -504,6 +515,12 @@ void Node::PrintSummary() const { impl_->PrintSummary(); }
 int RunNode(const ServerOptions& options) {
   std::signal(SIGINT, OnSignal);
   std::signal(SIGTERM, OnSignal);
+  // Key files are arguments: a bad one is a usage error (exit 2) before anything starts.
+  auto gate = options.ToGateOptions();
+  if (!gate.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", gate.status().message().c_str());
+    return 2;
+  }
   const std::string url = ResolveLcmUrl(options.lcm_url);
   lcm::LCM lcm(url);
   if (!lcm.good()) {
@@ -512,11 +529,6 @@ int RunNode(const ServerOptions& options) {
                  url.c_str(), kLcmRouteHint);
     return 1;
   }
-  auto gate = options.ToGateOptions();
-  if (!gate.ok()) {
-    std::fprintf(stderr, "vdeform-server: %s\n", gate.status().message().c_str());
-    return 2;
-  }
   auto engine = Engine::Create(options.engine, options.device);
   if (!engine.ok()) {
     std::fprintf(stderr, "vdeform-server: %s\n", engine.status().ToString().c_str());
@@ -524,6 +536,9 @@ int RunNode(const ServerOptions& options) {
   }
   VD_LOG_INFO << "vdeform-server on " << (*engine)->DeviceDescription() << ", LCM " << url;
   if (!gate->control_key.empty()) VD_LOG_INFO << "control commands RESET and SAVE_SNAPSHOT need an HMAC";
+  if (!gate->frame_keys.empty())
+    VD_LOG_INFO << "frames must be signed (" << gate->frame_keys.size()
+                << (gate->frame_keys.per_source() ? " source keys)" : " key for every source)");
   if (!gate->accept_sources.empty()) VD_LOG_INFO << "accepting frames only from: " << options.accept_sources;
   Node node(options, &lcm, std::move(engine).value(), std::move(gate).value());
   // A refused checkpoint is reported (log and status) and the server starts a new model.

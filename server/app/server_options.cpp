@@ -43,8 +43,12 @@ void ServerOptions::Register(FlagParser* f) {
          "File holding the HMAC-SHA256 key (>= 16 bytes, mode 600) that RESET and SAVE_SNAPSHOT commands must "
          "be signed with (vdeform-control --key-file); empty = control is not authenticated",
          "FILE");
-  f->Add("max-frame-pixels", &max_frame_pixels,
-         "Frames declaring more pixels (width x height) are refused before decoding (0 = up to 8192 x 8192)");
+  f->Add("frame-key-file", &frame_key_file,
+         "File of HMAC-SHA256 keys frames must be signed with (vdeform-capture --frame-key-file): one line KEY for "
+         "every source, or SOURCE_ID KEY lines; KEY is 64 hex digits (openssl rand -hex 32), mode 600. Unsigned, "
+         "wrongly signed and replayed frames are counted and refused; empty = frames are not authenticated",
+         "FILE");
+  gate.Bind(f);
   f->Section("Output");
   f->AddSwitch("quiet", &quiet, "Only warnings and errors");
 }
@@ -54,15 +58,14 @@ Status ServerOptions::Validate() const {
   // Source options are checked by SourceOptions::Validate when the offline mode opens its source.
   if (!(checkpoint_interval >= 0.0))
     return ParamOutOfBounds("ServerOptions", "checkpoint_interval", checkpoint_interval, ">= 0 s (--checkpoint-interval)");
-  if (max_frame_pixels < 0)
-    return ParamOutOfBounds("ServerOptions", "max_frame_pixels", double(max_frame_pixels), ">= 0 (--max-frame-pixels)");
+  VD_RETURN_IF_ERROR(gate.Validate());
   if (resume && checkpoint_dir.empty()) return InvalidArgument("--resume needs --checkpoint DIR");
   return Status::Ok();
 }
 
 StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
   GateOptions g;
-  g.max_frame_pixels = max_frame_pixels;
+  g.params = gate;
   size_t begin = 0;
   while (begin <= accept_sources.size() && !accept_sources.empty()) {
     const size_t end = std::min(accept_sources.find(',', begin), accept_sources.size());
@@ -75,6 +78,11 @@ StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
     auto key = ReadControlKey(control_key_file);
     if (!key.ok()) return key.status();
     g.control_key = std::move(key).value();
+  }
+  if (!frame_key_file.empty()) {
+    auto keys = ReadFrameKeys(frame_key_file);
+    if (!keys.ok()) return keys.status();
+    g.frame_keys = std::move(keys).value();
   }
   return g;
 }

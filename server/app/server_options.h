@@ -36,14 +36,17 @@ struct ServerOptions {
   // that change state only with an HMAC under the key in this file.
   std::string accept_sources;
   std::string control_key_file;
-  // Largest frame accepted, in pixels (checked before decoding).
-  int64_t max_frame_pixels = GateOptions().max_frame_pixels;
+  // Frames only when signed under their source's key in this file (one key, or SOURCE_ID KEY lines).
+  std::string frame_key_file;
+  // What the gate lets through: frame size, sequence jumps (bound to flags by GateParams::Bind).
+  GateParams gate;
   bool quiet = false;
 
   void Register(FlagParser* flags);
   // The engine's parameters and the server's own; called once after parsing.
   Status Validate() const;
-  // Reads the key file and splits accept_sources; fails on an unreadable or weak key.
+  // Reads the key files and splits accept_sources; fails on an unreadable or weak key, naming the
+  // file (and the line of a frame key file).
   StatusOr<GateOptions> ToGateOptions() const;
 };
 

@@ -57,6 +57,11 @@ void PrintStatus(const vdeform::server_status_t& st) {
   i("frames_lost", st.frames_lost);
   i("frames_foreign", st.frames_foreign);
   i("source_restarts", st.source_restarts);
+  i("frames_held", st.frames_held);
+  i("sequence_jumps", st.sequence_jumps);
+  i("frames_rate_limited", st.frames_rate_limited);
+  i("control_rate_limited", st.control_rate_limited);
+  i("mesh_requests_merged", st.mesh_requests_merged);
   i("control_refused", st.control_refused);
   i("last_processed_seq", st.last_processed_seq);
   std::printf("last_source_id=%s\n", st.last_source_id.c_str());

@@ -4,7 +4,7 @@
 # restarted is seen as a restart and the stream goes on; control commands need the HMAC key;
 # the server killed (SIGKILL) and restarted with --resume continues the checkpointed model; a torn
 # checkpoint is reported in the status and a new model started; every process stops cleanly, the
-# server without an error line.
+# server without an error line. Frames are signed (--frame-key-file): unsigned ones are refused.
 #   faults_test.sh BUILD_DIR
 set -uo pipefail
 build=$1
@@ -39,9 +39,12 @@ wait_for() {
 
 head -c 32 /dev/urandom | base64 >"$work/control.key"
 chmod 600 "$work/control.key"
+openssl rand -hex 32 >"$work/frame.key" 2>/dev/null || od -An -tx1 -N32 /dev/urandom | tr -d ' \n' >"$work/frame.key"
+chmod 600 "$work/frame.key"
 start_server() {  # extra flags
   "$server_bin" --lcm-url "$url" --voxel-size 0.008 --checkpoint "$work/ckpt" --checkpoint-interval 1 \
-    --control-key-file "$work/control.key" --snapshot-dir "$work/snap" "$@" >>"$work/server.log" 2>&1 &
+    --control-key-file "$work/control.key" --frame-key-file "$work/frame.key" --snapshot-dir "$work/snap" "$@" \
+    >>"$work/server.log" 2>&1 &
   server=$!
   pids+=("$server")
   for _ in $(seq 1 300); do
@@ -57,7 +60,7 @@ start_server() {  # extra flags
 }
 start_capture() {
   "$build/capture_client/vdeform-capture" --source synthetic:tube --loop --fps 3 --source-id camA --lcm-url "$url" \
-    --quiet >>"$work/capture.log" 2>&1 &
+    --frame-key-file "$work/frame.key" --quiet >>"$work/capture.log" 2>&1 &
   capture=$!
   pids+=("$capture")
 }
@@ -99,6 +102,14 @@ wait_for source_restarts -eq 1 60
 wait_for frames_processed -ge $((before + 3)) 60
 [ "$(status frames_rejected)" -eq 0 ] || fail "frames rejected: $(status frames_rejected)"
 echo "capture restart: counted (source_restarts=1), $(status frames_processed) frames processed"
+
+# 2b. An unsigned capture under the same id: each of its frames refused as unsigned, none processed
+#     as its own (the signed stream goes on).
+"$build/capture_client/vdeform-capture" --source synthetic:cloth --count 3 --max-rate --source-id camA \
+  --lcm-url "$url" --quiet >>"$work/capture_unsigned.log" 2>&1 || fail "unsigned capture exited with $?"
+wait_for rejected_unsigned -eq 3 10
+[ "$(status frames_rejected)" -eq 3 ] || fail "frames rejected: $(status frames_rejected), expected the 3 unsigned"
+echo "unsigned frames: 3 sent, 3 refused (rejected_unsigned=3)"
 
 # 3. Control: unsigned RESET refused, signed RESET taken.
 "$control" --lcm-url "$url" --command reset >"$work/control.log" 2>&1 && fail "unsigned reset was taken"

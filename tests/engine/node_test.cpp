@@ -48,7 +48,7 @@ class NodeTest : public ::testing::Test {
     ASSERT_TRUE(options_.Validate().ok());
     auto engine = Engine::Create(options_.engine, "");
     ASSERT_TRUE(engine.ok()) << engine.status().ToString();
-    node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value());
+    node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value(), gate_);
     lcm_.subscribe(kFrameChannel, &Node::OnFrame, node_.get());
     lcm_.subscribe(kControlChannel, &Node::OnControl, node_.get());
     lcm_.subscribe(kStatusChannel, &Inbox::OnStatus, &inbox_);
@@ -83,6 +83,8 @@ class NodeTest : public ::testing::Test {
 
   lcm::LCM lcm_{"memq://"};
   ServerOptions options_;
+  // What the node's gate is built with (a derived fixture sets keys before SetUp).
+  GateOptions gate_;
   std::unique_ptr<Node> node_;
   Inbox inbox_;
   RgbdFrame frame_;
@@ -154,6 +156,25 @@ TEST_F(NodeTest, NewestFrameWinsAndDropsAreCounted) {
   EXPECT_EQ(st.last_processed_seq, 2);
 }
 
+// A frame numbered near 2^62 under the same source is held, not processed, and the real stream
+// goes on; the status says so (frames_held) and counts no losses for it.
+TEST_F(NodeTest, SequenceJumpsAreHeldAndReported) {
+  for (int64_t seq : {int64_t(0), int64_t(1) << 62, int64_t(1)}) {
+    auto m = Message(seq);
+    lcm_.publish(kFrameChannel, &m);
+    Pump();
+    node_->RunOnce();
+  }
+  const auto& st = Status();
+  EXPECT_EQ(st.frames_received, 3);
+  EXPECT_EQ(st.frames_processed, 2);
+  EXPECT_EQ(st.frames_held, 1);
+  EXPECT_EQ(st.sequence_jumps, 0);
+  EXPECT_EQ(st.frames_lost, 0);
+  EXPECT_EQ(st.frames_reordered, 0);
+  EXPECT_EQ(st.last_processed_seq, 1);
+}
+
 TEST_F(NodeTest, StatusReportsCaptureToMeshLatency) {
   // A frame without a capture time is not counted.
   auto untimed = Message(0);
@@ -219,6 +240,119 @@ TEST_F(NodeTest, SnapshotStaysInsideItsDirectoryAndMeshRequestRepublishes) {
   // Live and canonical meshes are sent again for a viewer that joined late.
   ASSERT_GE(inbox_.meshes.size(), before + 2);
   EXPECT_EQ(int(inbox_.meshes.back().kind), int(vdeform::mesh_t::KIND_CANONICAL));
+}
+
+// A node given a frame key: only frames signed under it reach the engine; the refused ones are
+// counted by reason in the status (vdeform-control prints them as rejected_<reason>).
+class SignedNodeTest : public NodeTest {
+ protected:
+  void SetUp() override {
+    auto keys = FrameKeys::Parse(std::string(64, '7'), "test");
+    ASSERT_TRUE(keys.ok());
+    gate_.frame_keys = *keys;
+    key_ = *gate_.frame_keys.For("test");
+    NodeTest::SetUp();
+  }
+  vdeform::rgbd_frame_t Signed(int64_t seq, int64_t epoch, int64_t utime) {
+    vdeform::rgbd_frame_t m = Message(seq);
+    m.epoch = epoch;
+    m.utime = utime;
+    EXPECT_TRUE(SignFrame(key_, &m).ok());
+    return m;
+  }
+  std::string key_;
+};
+
+TEST_F(SignedNodeTest, OnlySignedFramesReachTheModel) {
+  const int64_t t = 1764633600000000;
+  auto unsigned_frame = Message(0);
+  lcm_.publish(kFrameChannel, &unsigned_frame);
+  auto forged = Message(0);
+  forged.epoch = 5;
+  ASSERT_TRUE(SignFrame(std::string(32, 'x'), &forged).ok());
+  lcm_.publish(kFrameChannel, &forged);
+  Pump();
+  EXPECT_FALSE(node_->RunOnce()) << "no unsigned or forged frame may reach the engine";
+  auto first = Signed(0, 5, t);
+  lcm_.publish(kFrameChannel, &first);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  // A restart of the client (new epoch, later times), then its first run played back.
+  auto restarted = Signed(0, 6, t + 1'000'000);
+  lcm_.publish(kFrameChannel, &restarted);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  lcm_.publish(kFrameChannel, &first);
+  Pump();
+  EXPECT_FALSE(node_->RunOnce()) << "a replayed frame of the earlier run";
+  const auto& st = Status();
+  EXPECT_EQ(st.frames_received, 5);
+  EXPECT_EQ(st.frames_processed, 2);
+  EXPECT_EQ(st.frames_rejected, 3);
+  EXPECT_EQ(RejectCount(st, "unsigned"), 1);
+  EXPECT_EQ(RejectCount(st, "bad_signature"), 1);
+  EXPECT_EQ(RejectCount(st, "replayed"), 1);
+  EXPECT_EQ(st.source_restarts, 1);
+  EXPECT_EQ(st.model_frames, 2);
+}
+
+// The node with the gate's clock in the test's hand: REQUEST_MESH republishes the meshes at most
+// once a second however many viewers ask, and frames above a source's rate are counted and dropped.
+class ClockedNodeTest : public NodeTest {
+ protected:
+  void SetUp() override {
+    gate_.clock = [this] { return now_us_; };
+    gate_.params.max_frame_rate = 1.0;
+    NodeTest::SetUp();
+  }
+  int64_t now_us_ = 1'000'000;
+};
+
+TEST_F(ClockedNodeTest, MeshRequestsAreServedOnceASecondAndFramesAboveTheRateDropped) {
+  auto first = Message(0);
+  lcm_.publish(kFrameChannel, &first);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  Pump();
+  auto republished = [&] {
+    const size_t before = inbox_.meshes.size();
+    node_->Tick();
+    Pump();
+    return inbox_.meshes.size() - before;
+  };
+  vdeform::control_t c{};
+  c.utime = 0;
+  c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
+  c.auth_size = 0;
+  for (int i = 0; i < 20; ++i) {
+    c.sender = "viewer-" + std::to_string(i % 4);
+    lcm_.publish(kControlChannel, &c);
+  }
+  Pump();
+  EXPECT_EQ(republished(), 2u) << "live and canonical, once for all 20 requests";
+  EXPECT_EQ(republished(), 0u);
+  lcm_.publish(kControlChannel, &c);
+  Pump();
+  now_us_ += 999'999;
+  EXPECT_EQ(republished(), 0u) << "within the second";
+  now_us_ += 1;
+  EXPECT_EQ(republished(), 2u);
+  EXPECT_EQ(republished(), 0u);
+  // Frames: the source's rate is 1 Hz (a burst of 1 after its first frame): of 3 more frames at
+  // once, 1 is taken (it waits for the worker) and 2 are dropped, their numbers not lost.
+  for (int64_t seq = 1; seq <= 3; ++seq) {
+    auto m = Message(seq);
+    lcm_.publish(kFrameChannel, &m);
+  }
+  Pump();
+  const auto& st = Status();
+  EXPECT_EQ(st.mesh_requests_merged, 19);
+  EXPECT_EQ(st.control_refused, 0);
+  EXPECT_EQ(st.control_rate_limited, 0);
+  EXPECT_EQ(st.frames_received, 4);
+  EXPECT_EQ(st.frames_rate_limited, 2);
+  EXPECT_EQ(st.frames_lost, 0);
+  EXPECT_EQ(st.frames_processed, 1);
 }
 
 // Serving until a signal. select() in the receive returns EINTR for a signal that arrives while it

@@ -263,8 +263,10 @@ void StatusSeeds(SeedWriter* w) {
 }
 
 // fuzz_server_gate: sequences of [kind][u16 length][message] records (kind even = frame, odd =
-// control), with the source ids and the HMAC key that target configures: in-order frames, a
-// duplicate, a gap, a restart, a foreign source, a signed RESET and an unsigned one.
+// control), with the source ids and the HMAC keys that target configures: in-order frames, a
+// duplicate, a gap, a restart, a foreign source, a signed RESET and an unsigned one; signed frames
+// (capture-a under 32 'a' bytes, capture-b under 32 'b'), a restart with a new epoch, a replay of
+// the earlier epoch and a frame signed under the other source's key; a forged jump and a real one.
 void GateSeeds(SeedWriter* w) {
   const std::string key = "fuzz-control-key-0123456789";
   const int64_t now = 1764633600000000;
@@ -279,7 +281,7 @@ void GateSeeds(SeedWriter* w) {
     msg.encode(bytes.data(), 0, static_cast<int>(bytes.size()));
     return bytes;
   };
-  auto frame = [&](const std::string& source, int64_t seq, int64_t utime) {
+  auto frame_message = [&](const std::string& source, int64_t seq, int64_t utime, int64_t epoch) {
     RgbdFrame f;
     f.utime = utime;
     f.seq = seq;
@@ -289,7 +291,18 @@ void GateSeeds(SeedWriter* w) {
     f.depth = Depth(16, 12, 6, 50 + uint32_t(seq));
     FrameEncodeOptions options;
     options.color = ColorEncoding::kNone;
-    return encode(SeedWriter::Check(FrameToMessage(f, options), "gate frame"));
+    vdeform::rgbd_frame_t m = SeedWriter::Check(FrameToMessage(f, options), "gate frame");
+    m.epoch = epoch;
+    return m;
+  };
+  auto frame = [&](const std::string& source, int64_t seq, int64_t utime) {
+    return encode(frame_message(source, seq, utime, 1));
+  };
+  auto signed_frame = [&](const std::string& source, int64_t seq, int64_t utime, int64_t epoch, char key) {
+    vdeform::rgbd_frame_t m = frame_message(source, seq, utime, epoch);
+    const Status s = SignFrame(std::string(32, key), &m);
+    if (!s.ok()) SeedWriter::Fail("signed gate frame: " + s.ToString());
+    return encode(m);
   };
   auto control = [&](int8_t command, int64_t utime, bool sign) {
     vdeform::control_t m{};
@@ -318,6 +331,23 @@ void GateSeeds(SeedWriter* w) {
   record(&ctl, 1, control(vdeform::control_t::COMMAND_REQUEST_MESH, now + 30, false));
   record(&ctl, 0, frame("capture-a", 0, now));
   w->Write("server_gate", "seed-control", ctl);
+  std::vector<uint8_t> sig;
+  record(&sig, 0, signed_frame("capture-a", 0, now, 7, 'a'));
+  record(&sig, 0, signed_frame("capture-a", 1, now + 1, 7, 'a'));
+  record(&sig, 0, signed_frame("capture-b", 0, now + 2, 8, 'b'));
+  record(&sig, 0, signed_frame("capture-b", 1, now + 3, 8, 'a'));
+  record(&sig, 0, signed_frame("capture-a", 0, now + 10, 9, 'a'));
+  record(&sig, 0, signed_frame("capture-a", 1, now + 1, 7, 'a'));
+  record(&sig, 0, frame("capture-a", 1, now + 11));
+  w->Write("server_gate", "seed-signed", sig);
+  // A forged number near 2^62 amid a stream, then a jump confirmed by the frames after it.
+  std::vector<uint8_t> jump;
+  for (int64_t s = 0; s < 3; ++s) record(&jump, 0, frame("capture-a", s, now + s));
+  record(&jump, 0, frame("capture-a", int64_t(1) << 62, now + 3));
+  record(&jump, 0, frame("capture-a", 3, now + 4));
+  for (int64_t s = 1000; s < 1003; ++s) record(&jump, 0, frame("capture-a", s, now + s));
+  record(&jump, 0, frame("capture-a", 2, now + 2));
+  w->Write("server_gate", "seed-jump", jump);
 }
 
 }  // namespace

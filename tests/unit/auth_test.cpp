@@ -1,8 +1,10 @@
-// HMAC-SHA256 of control commands: the RFC 4231 vectors, sign/verify, tampering, key files.
+// HMAC-SHA256 of control commands and frames: the RFC 4231 vectors, sign/verify, tampering with
+// every field, key files (control keys; frame key files with one or per-source keys).
 #include <sys/stat.h>
 
 #include <filesystem>
 #include <fstream>
+#include <set>
 
 #include <gtest/gtest.h>
 
@@ -79,6 +81,157 @@ TEST(AuthTest, KeyFilesMustExistBePrivateAndLongEnough) {
   auto key = ReadControlKey(write("good", "0123456789abcdef-key\n\n", 0600));
   ASSERT_TRUE(key.ok()) << key.status().ToString();
   EXPECT_EQ(*key, "0123456789abcdef-key") << "trailing newlines are not part of the key";
+}
+
+vdeform::rgbd_frame_t FrameMessage() {
+  vdeform::rgbd_frame_t m{};
+  m.utime = 1764633600000000;
+  m.seq = 7;
+  m.epoch = 0x1234567890abcdefLL;
+  m.source_id = "cam";
+  m.fx = m.fy = 500.f;
+  m.cx = 2.f;
+  m.cy = 1.5f;
+  m.width = 4;
+  m.height = 3;
+  m.depth_scale = 1000.f;
+  m.depth_encoding = vdeform::rgbd_frame_t::DEPTH_RAW16;
+  m.depth_data.assign(4 * 3 * 2, 9);
+  m.depth_size = int32_t(m.depth_data.size());
+  m.color_encoding = vdeform::rgbd_frame_t::COLOR_RAW_BGR8;
+  m.color_data.assign(4 * 3 * 3, 200);
+  m.color_size = int32_t(m.color_data.size());
+  m.auth_size = 0;
+  return m;
+}
+
+const std::string kFrameKey(32, '\x5a');
+
+TEST(AuthTest, SignedFramesVerifyAndEveryFieldIsCovered) {
+  vdeform::rgbd_frame_t m = FrameMessage();
+  const Status unsigned_status = VerifyFrame(kFrameKey, m);
+  EXPECT_EQ(unsigned_status.code(), StatusCode::kPermissionDenied);
+  EXPECT_NE(unsigned_status.message().find("auth_size 0"), std::string::npos) << unsigned_status.message();
+  ASSERT_TRUE(SignFrame(kFrameKey, &m).ok());
+  ASSERT_EQ(m.auth_size, 32);
+  ASSERT_EQ(m.auth.size(), 32u);
+  EXPECT_TRUE(VerifyFrame(kFrameKey, m).ok());
+  EXPECT_FALSE(VerifyFrame(std::string(32, '\x5b'), m).ok()) << "another key";
+  // The same frame signed again gives the same MAC (a re-sent frame is a duplicate, not a forgery).
+  vdeform::rgbd_frame_t again = m;
+  ASSERT_TRUE(SignFrame(kFrameKey, &again).ok());
+  EXPECT_EQ(again.auth, m.auth);
+  using Change = void (*)(vdeform::rgbd_frame_t*);
+  const std::pair<const char*, Change> changes[] = {
+      {"utime", [](vdeform::rgbd_frame_t* t) { t->utime += 1; }},
+      {"seq", [](vdeform::rgbd_frame_t* t) { t->seq += 1; }},
+      {"epoch", [](vdeform::rgbd_frame_t* t) { t->epoch ^= 1; }},
+      {"source_id", [](vdeform::rgbd_frame_t* t) { t->source_id = "cam2"; }},
+      {"fx", [](vdeform::rgbd_frame_t* t) { t->fx = 501.f; }},
+      {"fy", [](vdeform::rgbd_frame_t* t) { t->fy = 499.f; }},
+      {"cx", [](vdeform::rgbd_frame_t* t) { t->cx = 2.5f; }},
+      {"cy", [](vdeform::rgbd_frame_t* t) { t->cy = 1.f; }},
+      {"width", [](vdeform::rgbd_frame_t* t) { t->width = 3; }},
+      {"height", [](vdeform::rgbd_frame_t* t) { t->height = 4; }},
+      {"depth_scale", [](vdeform::rgbd_frame_t* t) { t->depth_scale = 5000.f; }},
+      {"depth_encoding", [](vdeform::rgbd_frame_t* t) { t->depth_encoding = vdeform::rgbd_frame_t::DEPTH_PNG16; }},
+      {"color_encoding", [](vdeform::rgbd_frame_t* t) { t->color_encoding = vdeform::rgbd_frame_t::COLOR_JPEG; }},
+      {"depth byte", [](vdeform::rgbd_frame_t* t) { t->depth_data[5] ^= 0x80; }},
+      {"last colour byte", [](vdeform::rgbd_frame_t* t) { t->color_data.back() ^= 1; }},
+      // One byte moved from the end of depth to the start of colour: same bytes, other split.
+      {"depth/colour split", [](vdeform::rgbd_frame_t* t) {
+         t->color_data.insert(t->color_data.begin(), t->depth_data.back());
+         t->depth_data.pop_back();
+         t->depth_size -= 1;
+         t->color_size += 1;
+       }},
+      {"auth byte", [](vdeform::rgbd_frame_t* t) { t->auth[0] ^= 1; }},
+      {"auth length", [](vdeform::rgbd_frame_t* t) {
+         t->auth.pop_back();
+         t->auth_size = 31;
+       }},
+  };
+  for (const auto& [what, change] : changes) {
+    vdeform::rgbd_frame_t t = m;
+    change(&t);
+    EXPECT_EQ(VerifyFrame(kFrameKey, t).code(), StatusCode::kPermissionDenied) << what;
+  }
+}
+
+TEST(AuthTest, RandomEpochsAreNonZeroAndDiffer) {
+  std::set<int64_t> seen;
+  for (int i = 0; i < 100; ++i) {
+    const int64_t e = RandomEpoch();
+    EXPECT_NE(e, 0);
+    seen.insert(e);
+  }
+  EXPECT_EQ(seen.size(), 100u);
+}
+
+const std::string kHexA = "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff";
+const std::string kHexB = "FFEEDDCCBBAA99887766554433221100FFEEDDCCBBAA99887766554433221100";
+
+TEST(AuthTest, FrameKeyFilesHoldOneKeyOrOnePerSource) {
+  auto one = FrameKeys::Parse("# the key of every capture node\n\n  " + kHexA + "  \n", "k");
+  ASSERT_TRUE(one.ok()) << one.status().ToString();
+  EXPECT_FALSE(one->per_source());
+  EXPECT_EQ(one->size(), 1u);
+  ASSERT_NE(one->For("anything"), nullptr);
+  const std::string half("\x00\x11\x22\x33\x44\x55\x66\x77\x88\x99\xaa\xbb\xcc\xdd\xee\xff", 16);
+  EXPECT_EQ(*one->For("anything"), half + half);
+  auto per = FrameKeys::Parse("left " + kHexA + "\nright\t" + kHexB + "\n", "k");
+  ASSERT_TRUE(per.ok()) << per.status().ToString();
+  EXPECT_TRUE(per->per_source());
+  EXPECT_EQ(per->size(), 2u);
+  ASSERT_NE(per->For("left"), nullptr);
+  ASSERT_NE(per->For("right"), nullptr);
+  EXPECT_EQ(per->For("left")->size(), 32u);
+  EXPECT_EQ(uint8_t((*per->For("right"))[0]), 0xff) << "upper-case hex";
+  EXPECT_NE(*per->For("left"), *per->For("right"));
+  EXPECT_EQ(per->For("lef"), nullptr) << "exact ids";
+}
+
+TEST(AuthTest, BadFrameKeyFilesNameTheFileAndLine) {
+  struct Case {
+    std::string text, expected;
+  } cases[] = {
+      {"", "frame key file 'keys.txt' holds no key"},
+      {"# only a comment\n\n", "frame key file 'keys.txt' holds no key"},
+      {"\n" + kHexA.substr(2) + "\n", "'keys.txt' line 2: the key has 62 characters; 64 hex digits"},
+      {kHexA + "00\n", "'keys.txt' line 1: the key has 66 characters"},
+      {"cam " + kHexA.substr(0, 63) + "g\n", "'keys.txt' line 1: the key is not hexadecimal (character 64)"},
+      {"a " + kHexA + "\nb " + kHexB + "\na " + kHexB + "\n",
+       "'keys.txt' line 3: source 'a' already has a key on line 1"},
+      {kHexA + "\n" + kHexB + "\n", "'keys.txt' line 2: a second key for every source (the first is on line 1)"},
+      {"a " + kHexA + "\n" + kHexB + "\n", "'keys.txt' line 2: a key for every source among SOURCE_ID KEY lines"},
+      {kHexA + "\na " + kHexB + "\n", "'keys.txt' line 2: SOURCE_ID KEY after the key for every source on line 1"},
+      {"a b " + kHexA + "\n", "'keys.txt' line 1: expected KEY or SOURCE_ID KEY, got 3 fields"},
+  };
+  for (const Case& c : cases) {
+    auto keys = FrameKeys::Parse(c.text, "keys.txt");
+    ASSERT_FALSE(keys.ok()) << c.text;
+    EXPECT_EQ(keys.status().code(), StatusCode::kInvalidArgument) << c.text;
+    EXPECT_NE(keys.status().message().find(c.expected), std::string::npos)
+        << "got: " << keys.status().message() << "\nexpected: " << c.expected;
+  }
+}
+
+TEST(AuthTest, FrameKeyFilesMustExistAndBePrivate) {
+  const std::string dir = testing::TempDir() + "/vd_frame_keys";
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/frame.key";
+  std::ofstream(path, std::ios::trunc) << "cam " << kHexA << "\n";
+  chmod(path.c_str(), 0640);
+  auto open = ReadFrameKeys(path);
+  EXPECT_EQ(open.status().code(), StatusCode::kPermissionDenied);
+  EXPECT_NE(open.status().message().find(path), std::string::npos);
+  chmod(path.c_str(), 0600);
+  auto keys = ReadFrameKeys(path);
+  ASSERT_TRUE(keys.ok()) << keys.status().ToString();
+  EXPECT_NE(keys->For("cam"), nullptr);
+  auto missing = ReadFrameKeys(dir + "/missing.key");
+  EXPECT_EQ(missing.status().code(), StatusCode::kNotFound);
+  EXPECT_NE(missing.status().message().find("frame key file '" + dir + "/missing.key'"), std::string::npos);
 }
 
 }  // namespace

@@ -123,7 +123,7 @@ void PutBe32(std::vector<uint8_t>* wire, size_t at, int32_t v) {
 }
 
 // Offset of rgbd_frame_t.depth_size in Frame()'s wire bytes.
-size_t DepthSizeOffset() { return 8 + 16 + 4 + std::strlen("camera-1") + 1 + 16 + 8 + 4 + 1; }
+size_t DepthSizeOffset() { return 8 + 24 + 4 + std::strlen("camera-1") + 1 + 16 + 8 + 4 + 1; }
 
 TEST(LcmWireTest, GeneratedDecodeAllocatesTheDeclaredSize) {
   // Documents the lcm-gen behaviour that ValidateLcmWire exists for.
@@ -163,12 +163,28 @@ TEST(LcmWireTest, NegativeCountsAndEmptyStringsAreRefused) {
 
   // source_id length 0 would make lcm-gen assign (size_t)-1 characters.
   wire = Wire(Frame());
-  PutBe32(&wire, 8 + 16, 0);
+  PutBe32(&wire, 8 + 24, 0);
   decoded = DecodeLcm<vdeform::rgbd_frame_t>(wire.data(), wire.size());
   ASSERT_FALSE(decoded.ok());
   EXPECT_NE(decoded.status().message().find("source_id"), std::string::npos) << decoded.status().message();
-  PutBe32(&wire, 8 + 16, INT32_MIN);
+  PutBe32(&wire, 8 + 24, INT32_MIN);
   EXPECT_FALSE(DecodeLcm<vdeform::rgbd_frame_t>(wire.data(), wire.size()).ok());
+
+  // rgbd_frame_t.auth_size (the last field): negative, or more bytes than the message holds.
+  wire = Wire(Frame());
+  const size_t frame_auth_at = wire.size() - 4;
+  PutBe32(&wire, frame_auth_at, -1);
+  decoded = DecodeLcm<vdeform::rgbd_frame_t>(wire.data(), wire.size());
+  ASSERT_FALSE(decoded.ok());
+  EXPECT_NE(decoded.status().message().find("auth_size = -1 is negative"), std::string::npos)
+      << decoded.status().message();
+  PutBe32(&wire, frame_auth_at, INT32_MAX);
+  g_largest_allocation = 0;
+  decoded = DecodeLcm<vdeform::rgbd_frame_t>(wire.data(), wire.size());
+  ASSERT_FALSE(decoded.ok());
+  EXPECT_NE(decoded.status().message().find("rgbd_frame_t.auth needs"), std::string::npos)
+      << decoded.status().message();
+  EXPECT_LT(g_largest_allocation.load(), size_t{64} * 1024);
 
   // server_status_t: 2^31-1 reject reasons in a short message.
   std::vector<uint8_t> status = Wire(ServerStatus());
