@@ -39,7 +39,9 @@ class GateTest : public ::testing::Test {
     auto m = FrameToMessage(f, FrameEncodeOptions());
     EXPECT_TRUE(m.ok());
     m->epoch = epoch;
-    if (!key.empty()) EXPECT_TRUE(SignFrame(key, &*m).ok());
+    if (!key.empty()) {
+      EXPECT_TRUE(SignFrame(key, &*m).ok());
+    }
     return *m;
   }
   static std::vector<uint8_t> Wire(const vdeform::rgbd_frame_t& m) {
