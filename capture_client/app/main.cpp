@@ -239,15 +239,13 @@ int Run(const Args& a) {
     if (!next->has_value()) break;
     RgbdFrame& frame = **next;
     frame.seq = sent;
+    frame.epoch = epoch;
     frame.source_id = a.source_id;
     frame.utime = NowMicros();
     auto msg = FrameToMessage(frame, a.encode);
-    if (msg.ok()) {
-      msg->epoch = epoch;
-      if (!a.frame_key.empty()) {
-        const Status signed_ok = SignFrame(a.frame_key, &*msg);
-        if (!signed_ok.ok()) msg = signed_ok;
-      }
+    if (msg.ok() && !a.frame_key.empty()) {
+      const Status signed_ok = SignFrame(a.frame_key, &*msg);
+      if (!signed_ok.ok()) msg = signed_ok;
     }
     if (!msg.ok()) {
       if (progress) std::fprintf(stderr, "\n");

@@ -60,7 +60,7 @@ void FramePacer::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) 
     }
     return;
   }
-  if (msg->last_source_id != options_.source_id) return;
+  if (msg->last_source_id != options_.source_id || !epoch_ || msg->last_epoch != *epoch_) return;
   if (msg->last_processed_seq > stats_.last_acked_seq) stats_.last_acked_seq = msg->last_processed_seq;
 }
 
@@ -85,6 +85,10 @@ StatusOr<bool> FramePacer::WaitForAck(int64_t seq, Clock::time_point until) {
 }
 
 Status FramePacer::Send(const vdeform::rgbd_frame_t& msg) {
+  if (epoch_ != msg.epoch) {
+    epoch_ = msg.epoch;
+    stats_.last_acked_seq = -1;
+  }
   if (options_.fps > 0.0) {
     const auto period = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / options_.fps));
     const auto now = Clock::now();

@@ -151,6 +151,7 @@ Status ValidateLcmWire<vdeform::server_status_t>(const void* data, size_t size) 
   VD_RETURN_IF_ERROR(w.Skip(11 * 8, "sequence, control, jump and rate counters"));
   VD_RETURN_IF_ERROR(w.Skip(8, "last_processed_seq"));
   VD_RETURN_IF_ERROR(w.String("last_source_id"));
+  VD_RETURN_IF_ERROR(w.Skip(8, "last_epoch"));
   VD_RETURN_IF_ERROR(w.Count("num_stages", &n));
   VD_RETURN_IF_ERROR(w.Strings(n, "stage_name"));
   VD_RETURN_IF_ERROR(w.Array(n, 4, "stage_ms_last"));
@@ -217,8 +218,7 @@ StatusOr<vdeform::rgbd_frame_t> FrameToMessage(const RgbdFrame& frame, const Fra
   vdeform::rgbd_frame_t msg;
   msg.utime = frame.utime;
   msg.seq = frame.seq;
-  // The capture client sets its epoch and signs the message (SignFrame) after encoding.
-  msg.epoch = 0;
+  msg.epoch = frame.epoch;
   msg.source_id = frame.source_id;
   msg.fx = frame.intrinsics.fx;
   msg.fy = frame.intrinsics.fy;
@@ -247,6 +247,7 @@ StatusOr<RgbdFrame> MessageToFrame(const vdeform::rgbd_frame_t& msg) {
   RgbdFrame frame;
   frame.utime = msg.utime;
   frame.seq = msg.seq;
+  frame.epoch = msg.epoch;
   if (msg.source_id.size() > kMaxSourceIdLength)
     return InvalidArgument("rgbd_frame_t.source_id has " + std::to_string(msg.source_id.size()) + " characters, limit " +
                            std::to_string(kMaxSourceIdLength));

@@ -288,6 +288,7 @@ class Node::Impl {
       st.checkpoint_message = checkpoint_message_;
       st.last_processed_seq = last_processed_seq_;
       st.last_source_id = last_source_id_;
+      st.last_epoch = last_epoch_;
       for (int s = 0; s < StageTimes::kCount; ++s) {
         st.stage_name.push_back(StageTimes::kNames[s]);
         st.stage_ms_last.push_back(float(stats_.count() ? stats_.last().ms[s] : 0.0));
@@ -351,6 +352,7 @@ class Node::Impl {
     }
     last_processed_seq_ = frame.seq;
     last_source_id_ = frame.source_id;
+    last_epoch_ = frame.epoch;
     stats_.Add(result->times, ms);
     process_times_.push_back(Clock::now());
     while (process_times_.size() > 30) process_times_.pop_front();
@@ -467,6 +469,8 @@ class Node::Impl {
   // The newest frame in the model; a resumed model continues the sequence.
   int64_t last_processed_seq_ = -1;
   std::string last_source_id_;
+  // The run of the source of the newest frame (0 after a resume: the checkpoint does not keep it).
+  int64_t last_epoch_ = 0;
   // What the status says the server is doing, and why (device, tracking failure, bad frame).
   int8_t state_ = vdeform::server_status_t::STATE_IDLE;
   std::string message_ = "waiting for frames";

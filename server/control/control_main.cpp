@@ -65,6 +65,7 @@ void PrintStatus(const vdeform::server_status_t& st) {
   i("control_refused", st.control_refused);
   i("last_processed_seq", st.last_processed_seq);
   std::printf("last_source_id=%s\n", st.last_source_id.c_str());
+  i("last_epoch", st.last_epoch);
   i("model_frames", st.model_frames);
   std::printf("fps=%.2f\n", st.fps);
   std::printf("latency_ms_p50=%.1f\nlatency_ms_p95=%.1f\n", st.latency_ms_p50, st.latency_ms_p95);

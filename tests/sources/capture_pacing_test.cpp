@@ -286,6 +286,37 @@ TEST(FramePacer, MalformedStatusMessagesAreCountedNotFatal) {
 namespace vd {
 namespace {
 
+// A lockstep client restarted under the same source id: the server's status still names the last
+// frame of the earlier run (seq 5 of epoch 1), which must not acknowledge frames 0..5 of this one.
+TEST(FramePacer, AStatusAboutAnEarlierRunAcknowledgesNothing) {
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  auto pacer = FramePacer::Create(&lcm, Lockstep(0.2, 0));
+  ASSERT_TRUE(pacer.ok());
+  auto publish = [&](int64_t epoch, int64_t seq) {
+    vdeform::server_status_t status{};
+    status.last_source_id = "test-source";
+    status.last_processed_seq = seq;
+    status.last_epoch = epoch;
+    ASSERT_EQ(lcm.publish(kStatusChannel, &status), 0);
+  };
+  auto frame = [](int64_t epoch, int64_t seq) {
+    vdeform::rgbd_frame_t m = Frame(seq);
+    m.epoch = epoch;
+    return m;
+  };
+  publish(1, 5);
+  EXPECT_EQ((*pacer)->Send(frame(2, 0)).code(), StatusCode::kDeadlineExceeded);
+  EXPECT_EQ((*pacer)->stats().last_acked_seq, -1);
+  publish(2, 0);
+  EXPECT_TRUE((*pacer)->Send(frame(2, 1)).code() == StatusCode::kDeadlineExceeded) << "seq 0 does not ack seq 1";
+  EXPECT_EQ((*pacer)->stats().last_acked_seq, 0);
+  publish(1, 9);
+  publish(2, 2);
+  EXPECT_TRUE((*pacer)->Send(frame(2, 2)).ok());
+  EXPECT_EQ((*pacer)->stats().last_acked_seq, 2);
+}
+
 TEST(FramePacer, ShortStallsKeepTheMeanRate) {
   lcm::LCM lcm("memq://");
   ASSERT_TRUE(lcm.good());

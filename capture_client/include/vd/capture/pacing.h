@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include <lcm/lcm-cpp.hpp>
@@ -36,7 +37,8 @@ struct PacingStats {
   int64_t published = 0;
   // Lockstep re-sends after a time-out.
   int64_t resends = 0;
-  // Highest last_processed_seq acknowledged for our source id (-1: none yet).
+  // Highest last_processed_seq acknowledged for our source id and the epoch of the frames we send
+  // (-1: none yet); a status about an earlier run of our id acknowledges nothing.
   int64_t last_acked_seq = -1;
   // Status messages that failed to decode (logged once, then only counted).
   int64_t bad_status_messages = 0;
@@ -78,6 +80,8 @@ class FramePacer {
   // When the next frame may go out; unset before the first frame.
   std::chrono::steady_clock::time_point next_slot_;
   bool scheduled_ = false;
+  // The epoch of the frames being sent (set by the first Send): acknowledgements must name it.
+  std::optional<int64_t> epoch_;
 };
 
 }  // namespace vd

@@ -14,6 +14,8 @@ struct RgbdFrame {
   int64_t utime = 0;
   // Monotonic frame number of the source.
   int64_t seq = 0;
+  // The run of the source this frame belongs to: a random number each capture process picks.
+  int64_t epoch = 0;
   std::string source_id;
   Intrinsics intrinsics;
   // Raw depth units per metre (1000 for millimetres).

@@ -1,0 +1,137 @@
+#!/usr/bin/env bash
+# A hostile publisher on the LCM group, end to end on this host (issue 15). While a real capture
+# streams signed frames in lockstep, vd_hostile_publisher, which speaks LCM's UDP wire format
+# itself, sends exact replays of an earlier run and of the current one; mutated, truncated,
+# oversized, foreign and forged frames (unsigned with huge, repeating and small sequence numbers,
+# negative numbers, signed under another key); unsigned and wrongly signed commands with escaping
+# snapshot paths; 200 REQUEST_MESH from 20 names; then a flood of junk datagrams, junk frames,
+# dangling fragments from 64 ports and complete 6.6 MB messages. Asserted: every real frame processed (lockstep, exact); no forged
+# frame reaches the model; each counter moved by exactly what was sent, by reason; REQUEST_MESH
+# merged; the server's RSS grew by less than 5 %; nothing written anywhere (every snapshot command
+# was forged).
+#   hostile_test.sh BUILD_DIR
+set -uo pipefail
+build=$1
+work=$(mktemp -d)
+pids=()
+cleanup() {
+  kill -INT ${pids[*]:-} 2>/dev/null
+  sleep 0.5
+  kill -9 ${pids[*]:-} 2>/dev/null
+  rm -rf "$work" /tmp/vd-hostile-abs
+}
+trap cleanup EXIT
+export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$build/pocl-cache}
+group=239.255.76.67
+port=$((7700 + $$ % 90))
+url="udpm://$group:$port?ttl=0&recv_buf_size=4194304"
+hostile="$build/tests/e2e/vd_hostile_publisher"
+control="$build/server/vdeform-control"
+fail() { echo "HOSTILE FAIL: $*"; for f in "$work"/*.log "$work"/s3; do echo "== $f"; tail -15 "$f"; done; exit 1; }
+status() { "$control" --lcm-url "$url" --command status --wait 3 2>/dev/null; }
+# field FILE KEY: a key=value field of a saved status or counts file (0 when absent).
+field() { local v; v=$(sed -n "s/^$2=//p" "$1" | head -1); echo "${v:-0}"; }
+delta() { echo $(($(field "$2" "$1") - $(field "$3" "$1"))); }  # KEY AFTER BEFORE
+
+head -c 32 /dev/urandom | base64 >"$work/control.key"
+openssl rand -hex 32 >"$work/frame.key" 2>/dev/null || od -An -tx1 -N32 /dev/urandom | tr -d ' \n' >"$work/frame.key"
+chmod 600 "$work/control.key" "$work/frame.key"
+mkdir -p "$work/run"
+(cd "$work/run" && exec "$build/server/vdeform-server" --lcm-url "$url" --voxel-size 0.008 \
+  --frame-key-file "$work/frame.key" --control-key-file "$work/control.key" --accept-sources camA \
+  --snapshot-dir "$work/run/snap") >"$work/server.log" 2>&1 &
+server=$!
+pids+=("$server")
+for _ in $(seq 1 300); do
+  [ -n "$(status | sed -n 's/^state=//p')" ] && break
+  if ! kill -0 "$server" 2>/dev/null; then
+    grep -q "cannot open LCM" "$work/server.log" &&
+      { echo "HOSTILE SKIP: LCM multicast unavailable (ip route add 224.0.0.0/4 dev lo)"; exit 77; }
+    fail "server exited during start-up"
+  fi
+  sleep 0.2
+done
+capture() {  # count, log
+  "$build/capture_client/vdeform-capture" --source synthetic:tube --count "$1" --lockstep --lockstep-timeout 5 --lockstep-retries 10 \
+    --source-id camA --frame-key-file "$work/frame.key" --lcm-url "$url" --quiet >"$work/$2" 2>&1
+}
+record() {  # count, folder; sets rec to its pid
+  "$hostile" record --lcm-url "$url" --count "$1" --out "$work/$2" --timeout 120 >"$work/record_$2.log" 2>&1 &
+  rec=$!
+}
+
+# An earlier run of the real source, recorded by the attacker.
+record 3 earlier
+sleep 0.5
+capture 3 capture1.log || fail "first capture exited with $?"
+wait "$rec" || fail "the attacker recorded no earlier run"
+# The current run: the attacker records its first 2 frames, then attacks while it goes on.
+frames=10
+record 2 current
+sleep 0.5
+capture $frames capture2.log &
+cap=$!
+pids+=("$cap")
+wait "$rec" || fail "the attacker recorded nothing of the current run"
+status >"$work/s0"
+"$hostile" attack --group $group --port $port --source-id camA --earlier "$work/earlier" --current "$work/current" \
+  >"$work/attack" 2>"$work/attack.log" || fail "attack failed: $(cat "$work/attack.log")"
+sleep 1.5
+status >"$work/s1"
+"$hostile" flood --group $group --port $port --seconds 2 >"$work/flood" 2>"$work/flood.log" || fail "flood failed"
+sleep 1.5
+status >"$work/s2"
+wait "$cap" || fail "the real capture exited with $? (lockstep gave up?)"
+sleep 1
+status >"$work/s3"
+kill -INT "$server"
+wait "$server" || fail "server exited with $? after SIGINT"
+pids=()
+
+# Every real frame processed, nothing else.
+resent=$(sed -n 's/.*(\([0-9]*\) re-sent).*/\1/p' "$work/capture2.log")
+[ "$(field "$work/s3" frames_processed)" -eq $((3 + frames)) ] ||
+  fail "processed $(field "$work/s3" frames_processed) frames, expected the $((3 + frames)) real ones"
+for k in frames_dropped frames_held frames_lost sequence_jumps frames_rate_limited; do
+  [ "$(field "$work/s3" $k)" -eq 0 ] || fail "$k = $(field "$work/s3" $k)"
+done
+[ "$(field "$work/s3" source_restarts)" -eq 1 ] || fail "source_restarts = $(field "$work/s3" source_restarts)"
+[ "$(field "$work/s3" last_source_id)" = camA ] || fail "last frame from $(field "$work/s3" last_source_id)"
+# Each attack moved its counter by exactly what was sent (a lockstep re-send is one more duplicate).
+for k in $(sed -n 's/^\(rejected_[a-z_]*\|frames_duplicate\|frames_foreign\)=.*/\1/p' "$work/attack"); do
+  want=$(field "$work/attack" "$k")
+  got=$(delta "$k" "$work/s1" "$work/s0")
+  if [ "$k" = frames_duplicate ]; then
+    [ "$got" -ge "$want" ] && [ "$got" -le $((want + ${resent:-0})) ] || fail "$k moved by $got, sent $want"
+  else
+    [ "$got" -eq "$want" ] || fail "$k moved by $got, sent $want"
+  fi
+  echo "attack: $k +$got (sent $want)"
+done
+refused=$(($(delta control_refused "$work/s1" "$work/s0") - $(delta control_rate_limited "$work/s1" "$work/s0")))
+[ "$refused" -eq "$(field "$work/attack" control_refused)" ] || fail "control refused $refused, sent $(field "$work/attack" control_refused)"
+merged=$(($(delta mesh_requests_merged "$work/s1" "$work/s0") + $(delta control_rate_limited "$work/s1" "$work/s0")))
+[ "$merged" -ge 198 ] || fail "of 200 REQUEST_MESH only $merged were merged or rate-limited"
+echo "attack: control refused +$refused, REQUEST_MESH: $merged of 200 merged or rate-limited"
+# The flood: junk frames and 6.6 MB messages are malformed (some may be lost in the flood, none
+# invented), nothing else moves.
+junk=$(($(field "$work/flood" junk_frames) + $(field "$work/flood" oversized_messages)))
+got=$(delta rejected_malformed_message "$work/s2" "$work/s1")
+[ "$got" -le "$junk" ] || fail "$got malformed frames counted, $junk sent"
+for k in rejected_bad_signature rejected_unsigned rejected_replayed rejected_oversized frames_foreign; do
+  [ "$(delta $k "$work/s2" "$work/s1")" -eq 0 ] || fail "the flood moved $k"
+done
+echo "flood: $(field "$work/flood" garbage_datagrams) junk datagrams, $junk junk and 6.6 MB frames ($got counted" \
+  "malformed), $(field "$work/flood" dangling_fragments) dangling fragments"
+# Memory: flat across the attack and the flood.
+rss0=$(field "$work/s0" resident_memory_bytes)
+rss2=$(field "$work/s2" resident_memory_bytes)
+echo "server RSS: $((rss0 >> 20)) MB before the attack, $((rss2 >> 20)) MB after the flood"
+[ $((rss2 * 100)) -lt $((rss0 * 105)) ] || fail "RSS grew from $rss0 to $rss2 bytes (>= 5 %)"
+# Nothing written: no snapshot folder, no escaped file, nothing in the server's working folder.
+[ ! -e "$work/run/snap" ] || fail "a snapshot folder was written: $(find "$work/run/snap")"
+[ -z "$(find "$work" -name 'escape*')" ] || fail "an escaping path was written"
+[ ! -e /tmp/vd-hostile-abs ] || fail "an absolute snapshot path was written"
+[ "$(find "$work/run" -mindepth 1 | wc -l)" -eq 0 ] || fail "the server wrote: $(find "$work/run" -mindepth 1)"
+grep -q "^vdeform-server: received" "$work/server.log" || fail "no server summary"
+echo "HOSTILE OK"
