@@ -8,6 +8,7 @@
 #   lcm_guard_test.sh BUILD_DIR
 set -uo pipefail
 build=$1
+. "$(dirname "$0")/e2e_lib.sh"
 root=$(cd "$(dirname "$0")/../.." && pwd)
 skip() { echo "LCM GUARD SKIP: $*"; exit 77; }
 [ "$(id -u)" = 0 ] || skip "needs root (network namespace, nftables)"
@@ -37,12 +38,7 @@ start_server() {  # log name
   ip netns exec "$ns" "$build/server/vdeform-server" --lcm-url "$url" --voxel-size 0.008 --quiet \
     --snapshot-dir "$work/snap" >"$work/server_$1.log" 2>&1 &
   server=$!
-  for _ in $(seq 1 300); do
-    [ -n "$(rss)" ] && return 0
-    kill -0 "$server" 2>/dev/null || fail "server exited during start-up"
-    sleep 0.2
-  done
-  fail "no status from the server"
+  vd_wait_for_server "$server" "$work/server_$1.log" rss "LCM GUARD"
 }
 attack() {
   in_ns "$build/tests/e2e/vd_hostile_publisher" wrap --group $group --port $port >/dev/null &&
