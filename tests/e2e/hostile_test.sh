@@ -12,15 +12,8 @@
 #   hostile_test.sh BUILD_DIR
 set -uo pipefail
 build=$1
-work=$(mktemp -d)
-pids=()
-cleanup() {
-  kill -INT ${pids[*]:-} 2>/dev/null
-  sleep 0.5
-  kill -9 ${pids[*]:-} 2>/dev/null
-  rm -rf "$work" /tmp/vd-hostile-abs
-}
-trap cleanup EXIT
+. "$(dirname "$0")/e2e_lib.sh"
+vd_e2e_begin /tmp/vd-hostile-abs
 export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$build/pocl-cache}
 group=239.255.76.67
 port=$((7700 + $$ % 90))
@@ -42,17 +35,11 @@ mkdir -p "$work/run"
   --snapshot-dir "$work/run/snap") >"$work/server.log" 2>&1 &
 server=$!
 pids+=("$server")
-for _ in $(seq 1 300); do
-  [ -n "$(status | sed -n 's/^state=//p')" ] && break
-  if ! kill -0 "$server" 2>/dev/null; then
-    grep -q "cannot open LCM" "$work/server.log" &&
-      { echo "HOSTILE SKIP: LCM multicast unavailable (ip route add 224.0.0.0/4 dev lo)"; exit 77; }
-    fail "server exited during start-up"
-  fi
-  sleep 0.2
-done
+state() { status | sed -n 's/^state=//p'; }
+vd_wait_for_server "$server" "$work/server.log" state HOSTILE
 capture() {  # count, log
-  "$build/capture_client/vdeform-capture" --source synthetic:tube --count "$1" --lockstep --lockstep-timeout 5 --lockstep-retries 10 \
+  "$build/capture_client/vdeform-capture" --source synthetic:tube --count "$1" --lockstep --lockstep-timeout 5 \
+    --lockstep-retries 10 \
     --source-id camA --frame-key-file "$work/frame.key" --lcm-url "$url" --quiet >"$work/$2" 2>&1
 }
 record() {  # count, folder; sets rec to its pid
