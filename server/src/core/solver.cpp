@@ -125,13 +125,6 @@ StatusOr<double> DeviceSolver::SumPartials(size_t groups) {
   return s;
 }
 
-StatusOr<double> DeviceSolver::Dot(const ocl::Buffer<vd_float4>& a, const ocl::Buffer<vd_float4>& b) {
-  const size_t groups = (m_ + kChunk - 1) / kChunk;
-  VD_RETURN_IF_ERROR(ops_->ctx().Reserve(&partials_, std::max<size_t>(groups, 1)));
-  VD_RETURN_IF_ERROR(ocl::DotPartials(ops_->ctx(), groups, a, b, int(m_), kChunk, partials_));
-  return SumPartials(groups);
-}
-
 Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float4>& q) {
   ocl::Context& ctx = ops_->ctx();
   const auto& a = *active_;

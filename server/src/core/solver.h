@@ -92,7 +92,6 @@ class DeviceSolver {
   const ocl::Buffer<vd_float4>& rotations() const { return rot_; }
 
  private:
-  StatusOr<double> Dot(const ocl::Buffer<vd_float4>& a, const ocl::Buffer<vd_float4>& b);
   StatusOr<double> SumPartials(size_t groups);
   VdSolverWeights Weights() const;
 
