@@ -139,14 +139,14 @@ int Main(int argc, char** argv) {
   std::vector<vd_float4> cpu_rot(n, VD_F4(0.f, 0.f, 0.f, 1.f)), ocl_rot(n), warm_rot(n);
   auto cpu = [&] { cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, 0, cpu_rot.data()); };
   auto ocl = [&] {
-    Check(ocl::kProcrustes(*ctx, n, *dn, *dt, *dth, *drot, 0));
+    Check(ocl::FitRotations(*ctx, n, *dn, *dt, *dth, 0, *drot));
     Check(ctx->Finish());
   };
   cpu();
   ocl();  // builds the work-group variant outside the timing
   Check(ctx->Download(*drot, ocl_rot.data(), n));
   auto refine = [&] {
-    Check(ocl::kProcrustes(*ctx, n, *dn, *dt, *dth, *drot, 2));
+    Check(ocl::FitRotations(*ctx, n, *dn, *dt, *dth, 2, *drot));
     Check(ctx->Finish());
   };
   refine();

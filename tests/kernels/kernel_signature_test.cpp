@@ -19,7 +19,7 @@ template <class Handle, class... Args>
 constexpr bool kLaunches = std::is_invocable_v<const Handle&, Context&, size_t, Args...>;
 
 using DepthConvert = decltype(ocl::kDepthConvert);
-using Procrustes = decltype(ocl::kProcrustes);
+using Procrustes = decltype(ocl::kProcrustesRefine);
 using ScanSums = decltype(ocl::kScanSums);
 
 // The launches the code makes compile: read buffers const or not, values of the exact type.
@@ -54,11 +54,11 @@ TEST(KernelSignatureTest, AHandleThatDisagreesWithItsKernelFailsAtLaunch) {
   auto neighbours = test::ToDevice(ctx, std::vector<int32_t>(6, -1));
   auto t = test::ToDevice(ctx, std::vector<vd_float4>(1));
   auto rot = test::ToDevice(ctx, std::vector<vd_float4>(1));
-  ASSERT_TRUE(ocl::kProcrustes(*ctx, 1, neighbours, t, t, rot, 0).ok());
+  ASSERT_TRUE(ocl::kProcrustesRefine(*ctx, 1, neighbours, t, t, rot, 0).ok());
 
-  // vd_procrustes has five arguments before vd_items; this handle declares three.
+  // vd_procrustes_refine_kernel has five arguments before vd_items; this handle declares three.
   constexpr ocl::Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t, Buffer<vd_float4>& rot)>
-      kShort{"vd_procrustes"};
+      kShort{"vd_procrustes_refine_kernel"};
   const Status count = kShort(*ctx, 1, neighbours, t, rot);
   ASSERT_FALSE(count.ok());
   EXPECT_NE(count.message().find("vd_procrustes"), std::string::npos) << count.ToString();
@@ -69,7 +69,7 @@ TEST(KernelSignatureTest, AHandleThatDisagreesWithItsKernelFailsAtLaunch) {
   // Right count, but it claims to only read the rotations the kernel writes.
   constexpr ocl::Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& t,
                              const Buffer<vd_float4>& t_hat, const Buffer<vd_float4>& rot, int32_t iterations)>
-      kReadOnly{"vd_procrustes"};
+      kReadOnly{"vd_procrustes_refine_kernel", ocl::kLaned};
   const Status kind = kReadOnly(*ctx, 1, neighbours, t, t, rot, 0);
   ASSERT_FALSE(kind.ok());
   EXPECT_NE(kind.message().find("'rrrrss'"), std::string::npos) << kind.ToString();

@@ -1,4 +1,6 @@
 #include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <random>
 #include <vector>
 
@@ -82,7 +84,7 @@ BothRuns RunBoth(ocl::Context* ctx, const RandomSet& s, const std::vector<vd_flo
   auto dt = test::ToDevice(ctx, s.t);
   auto dth = test::ToDevice(ctx, s.t_hat);
   auto drot = test::ToDevice(ctx, rot);
-  const Status run = ocl::kProcrustes(*ctx, n, dn, dt, dth, drot, int32_t(iterations));
+  const Status run = ocl::FitRotations(*ctx, n, dn, dt, dth, iterations, drot);
   EXPECT_TRUE(run.ok()) << run.ToString();
   out.ocl = test::FromDevice(ctx, drot, n);
   return out;
@@ -150,6 +152,38 @@ TEST(ProcrustesParityTest, RefinedKernelMatchesCpuReferenceAndTheExactOptimum) {
   std::printf("refined (3 steps from ~6 deg): worst |q - q_exact| = %.2e\n", off);
 }
 
+// The laned refinement gives the same bits at every lane width (1, 4 and the device's own), item
+// counts that fill no whole lane group included, and the CPU reference's to rounding.
+TEST(ProcrustesParityTest, RefinedKernelIsTheSameAtEveryLaneWidth) {
+  VD_REQUIRE_OCL(ctx);
+  const int n = 1237;  // not a multiple of 4, 8 or 16
+  const RandomSet s = MakeSet(n, 44);
+  std::mt19937 rng(8);
+  std::normal_distribution<float> g(0.f, 0.3f);
+  std::vector<vd_float4> warm(n);
+  for (auto& q : warm) {
+    q = VD_F4(g(rng), g(rng), g(rng), 1.f);
+    q = q * (1.f / std::sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w));
+  }
+  const BothRuns native = RunBoth(ctx, s, warm, 2);
+  int worst_k = 0;
+  const double off = WorstQuatDiff(native.ocl, native.cpu, &worst_k);
+  EXPECT_LE(off, 1e-6) << "at k = " << worst_k;
+  for (const char* lanes : {"1", "4"}) {
+    setenv("VD_LANES", lanes, 1);
+    auto other = ocl::Context::Create(ctx->device().device_name);
+    unsetenv("VD_LANES");
+    ASSERT_TRUE(other.ok()) << other.status().ToString();
+    ASSERT_EQ((*other)->lanes(), std::atoi(lanes));
+    const BothRuns r = RunBoth(other->get(), s, warm, 2);
+    for (int k = 0; k < n; ++k) {
+      ASSERT_EQ(std::memcmp(&r.ocl[k], &native.ocl[k], sizeof(vd_float4)), 0)
+          << "lanes " << lanes << " against " << ctx->lanes() << ", k = " << k;
+    }
+  }
+  std::printf("refined at lanes %d, 4 and 1: identical; worst |q_ocl - q_cpu| = %.2e\n", ctx->lanes(), off);
+}
+
 TEST(ProcrustesParityTest, RecoversAGlobalRotationOnTheDevice) {
   VD_REQUIRE_OCL(ctx);
   // A 12^3 block of grid points with every 6-neighbour present where it exists, rotated rigidly:
@@ -177,7 +211,7 @@ TEST(ProcrustesParityTest, RecoversAGlobalRotationOnTheDevice) {
   auto dth = test::ToDevice(ctx, t_hat);
   auto drot = ctx->Alloc<vd_float4>(n);
   ASSERT_TRUE(drot.ok());
-  ASSERT_TRUE(ocl::kProcrustes(*ctx, n, dn, dt, dth, *drot, 0).ok());
+  ASSERT_TRUE(ocl::FitRotations(*ctx, n, dn, dt, dth, 0, *drot).ok());
   const auto rot = test::FromDevice(ctx, *drot, n);
   std::vector<float> expect;
   for (int k = 0; k < n; ++k) expect.insert(expect.end(), {q.x, q.y, q.z, q.w});

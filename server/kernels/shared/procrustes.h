@@ -94,40 +94,91 @@ VD_INLINE VdMat3 vd_procrustes_covariance(int k, VD_GLOBAL const int* neighbours
  * rotational part of deformations"), which always climbs. A step is applied as the quaternion
  * (ω/2, 1) normalised, ω first shortened to length 1: a turn by 2 atan(|ω|/2), equal to |ω| to
  * second order, and at most 53 degrees per step.
- * The only data-dependent branch is the S ≈ 0 test; the rest are selects, so a work-group runs
- * in lockstep (the SVD's Jacobi sweeps branch per pivot).
- * - S ≈ 0 or non-finite: nothing constrains R; q is returned as it is (the previous rotation
- *   stays, where vd_procrustes_rotation answers the identity).
+ * Written over lanes (vd_compat.h): one call refines VD_LANES points at once, every branch a
+ * select. `ok` is the lane mask of points whose S carries information (vd_procrustes_informed):
+ * - S ≈ 0 or non-finite (ok = 0): nothing constrains R; q is returned as it is (the previous
+ *   rotation stays, where vd_procrustes_rotation answers the identity).
  * - Rank 1: every rotation turning the line of the p_j onto that of the q_j is optimal; the
  *   steps add no twist about the line (g has none), so the one nearest q is kept.
- * In the flip-flop, q is the point's rotation of the previous half-step (or of the previous
- * frame), within a few degrees of the optimum (tests/solver/svd3_test.cpp measures the
- * convergence from 2 to 90 degrees). */
-VD_INLINE vd_float4 vd_procrustes_refine(VdMat3 s, vd_float4 q, int iterations) {
-  if (!(vd_mat3_max_abs(s) > VD_PROCRUSTES_MIN_COVARIANCE) || !vd_mat3_is_finite(s)) return q;
+ * Otherwise the result has w >= 0. In the flip-flop, q is the point's rotation of the previous
+ * half-step (or of the previous frame), within a few degrees of the optimum
+ * (tests/solver/svd3_test.cpp measures the convergence from 2 to 90 degrees). */
+typedef struct {
+  vd_lf m[9];
+} VdLMat3;
+typedef struct {
+  vd_lf x, y, z, w;
+} VdLQuat;
+
+VD_INLINE VdLQuat vd_procrustes_refine_lanes(VdLMat3 s, VdLQuat q, vd_li ok, int iterations) {
+  const VdLQuat q0 = q;
   for (int it = 0; it < iterations; ++it) {
-    VdMat3 m = vd_mat3_mul(vd_quat_to_mat3(q), s);
-    float tr = m.m[0] + m.m[4] + m.m[8];
-    vd_float4 g = VD_F4(m.m[5] - m.m[7], m.m[6] - m.m[2], m.m[1] - m.m[3], 0.0f);
-    float h00 = tr - m.m[0], h11 = tr - m.m[4], h22 = tr - m.m[8];
-    float h01 = -0.5f * (m.m[1] + m.m[3]), h02 = -0.5f * (m.m[2] + m.m[6]), h12 = -0.5f * (m.m[5] + m.m[7]);
-    float c00 = h11 * h22 - h12 * h12, c01 = h02 * h12 - h01 * h22, c02 = h01 * h12 - h02 * h11;
-    float c11 = h00 * h22 - h02 * h02, c12 = h01 * h02 - h00 * h12, c22 = h00 * h11 - h01 * h01;
-    float det = h00 * c00 + h01 * c01 + h02 * c02;
+    /* R(q) as vd_quat_to_mat3 forms it (identity where |q|² is not a positive finite number). */
+    vd_lf n2 = q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w;
+    vd_li valid = (n2 > 0.0f) & isfinite(n2);
+    vd_lf s2 = vd_lsel((vd_lf)0.0f, 2.0f / n2, valid);
+    vd_lf xx = q.x * q.x * s2, yy = q.y * q.y * s2, zz = q.z * q.z * s2;
+    vd_lf xy = q.x * q.y * s2, xz = q.x * q.z * s2, yz = q.y * q.z * s2;
+    vd_lf wx = q.w * q.x * s2, wy = q.w * q.y * s2, wz = q.w * q.z * s2;
+    vd_lf r[9] = {1.0f - yy - zz, xy - wz, xz + wy, xy + wz, 1.0f - xx - zz, yz - wx, xz - wy, yz + wx, 1.0f - xx - yy};
+    vd_lf m[9];
+    VD_UNROLL
+    for (int i = 0; i < 3; ++i) {
+      VD_UNROLL
+      for (int j = 0; j < 3; ++j)
+        m[3 * i + j] = r[3 * i] * s.m[j] + r[3 * i + 1] * s.m[3 + j] + r[3 * i + 2] * s.m[6 + j];
+    }
+    vd_lf tr = m[0] + m[4] + m[8];
+    vd_lf gx = m[5] - m[7], gy = m[6] - m[2], gz = m[1] - m[3];
+    vd_lf h00 = tr - m[0], h11 = tr - m[4], h22 = tr - m[8];
+    vd_lf h01 = -0.5f * (m[1] + m[3]), h02 = -0.5f * (m[2] + m[6]), h12 = -0.5f * (m[5] + m[7]);
+    vd_lf c00 = h11 * h22 - h12 * h12, c01 = h02 * h12 - h01 * h22, c02 = h01 * h12 - h02 * h11;
+    vd_lf c11 = h00 * h22 - h02 * h02, c12 = h01 * h02 - h00 * h12, c22 = h00 * h11 - h01 * h01;
+    vd_lf det = h00 * c00 + h01 * c01 + h02 * c02;
     /* Positive definite by its leading minors, det well away from rounding (relative to tr³). */
-    float scale = fabs(tr) + VD_PROCRUSTES_MIN_COVARIANCE;
-    int definite = h00 > 0.0f && c22 > 0.0f && det > 1e-6f * scale * scale * scale;
-    float inv_det = definite ? 1.0f / det : 0.0f;
-    float inv_tr = definite ? 0.0f : 1.0f / scale;
-    vd_float4 w = VD_F4((c00 * g.x + c01 * g.y + c02 * g.z) * inv_det + g.x * inv_tr,
-                        (c01 * g.x + c11 * g.y + c12 * g.z) * inv_det + g.y * inv_tr,
-                        (c02 * g.x + c12 * g.y + c22 * g.z) * inv_det + g.z * inv_tr, 0.0f);
+    vd_lf scale = fabs(tr) + VD_PROCRUSTES_MIN_COVARIANCE;
+    vd_li definite = (h00 > 0.0f) & (c22 > 0.0f) & (det > 1e-6f * scale * scale * scale);
+    vd_lf inv_det = vd_lsel((vd_lf)0.0f, 1.0f / det, definite);
+    vd_lf inv_tr = vd_lsel(1.0f / scale, (vd_lf)0.0f, definite);
+    vd_lf w0 = (c00 * gx + c01 * gy + c02 * gz) * inv_det + gx * inv_tr;
+    vd_lf w1 = (c01 * gx + c11 * gy + c12 * gz) * inv_det + gy * inv_tr;
+    vd_lf w2 = (c02 * gx + c12 * gy + c22 * gz) * inv_det + gz * inv_tr;
     /* A turn of at most ~1 rad per step: the quadratic model holds near the optimum only. */
-    float shrink = 0.5f / fmax(1.0f, vd_length3(w));
-    vd_float4 step = vd_quat_mul(VD_F4(shrink * w.x, shrink * w.y, shrink * w.z, 1.0f), q);
-    q = step * (1.0f / sqrt(vd_dot3(step, step) + step.w * step.w));
+    vd_lf shrink = 0.5f / fmax((vd_lf)1.0f, sqrt(w0 * w0 + w1 * w1 + w2 * w2));
+    vd_lf ax = shrink * w0, ay = shrink * w1, az = shrink * w2;
+    /* (a, 1) ∘ q, as vd_quat_mul. */
+    vd_lf nx = q.x + ax * q.w + ay * q.z - az * q.y;
+    vd_lf ny = q.y - ax * q.z + ay * q.w + az * q.x;
+    vd_lf nz = q.z + ax * q.y - ay * q.x + az * q.w;
+    vd_lf nw = q.w - ax * q.x - ay * q.y - az * q.z;
+    vd_lf inv = 1.0f / sqrt(nx * nx + ny * ny + nz * nz + nw * nw);
+    q.x = nx * inv;
+    q.y = ny * inv;
+    q.z = nz * inv;
+    q.w = nw * inv;
   }
-  return q.w < 0.0f ? -q : q;
+  vd_lf sign = vd_lsel((vd_lf)1.0f, (vd_lf)-1.0f, q.w < 0.0f);
+  VdLQuat out;
+  out.x = vd_lsel(q0.x, sign * q.x, ok);
+  out.y = vd_lsel(q0.y, sign * q.y, ok);
+  out.z = vd_lsel(q0.z, sign * q.z, ok);
+  out.w = vd_lsel(q0.w, sign * q.w, ok);
+  return out;
+}
+
+/* Whether S carries information: finite, and some entry above VD_PROCRUSTES_MIN_COVARIANCE. */
+VD_INLINE int vd_procrustes_informed(VdMat3 s) {
+  return vd_mat3_max_abs(s) > VD_PROCRUSTES_MIN_COVARIANCE && vd_mat3_is_finite(s);
+}
+
+#if VD_LANES == 1
+/* One point: vd_procrustes_refine_lanes with a single lane. */
+VD_INLINE vd_float4 vd_procrustes_refine(VdMat3 s, vd_float4 q, int iterations) {
+  VdLMat3 sl;
+  for (int i = 0; i < 9; ++i) sl.m[i] = s.m[i];
+  VdLQuat ql = {q.x, q.y, q.z, q.w};
+  VdLQuat r = vd_procrustes_refine_lanes(sl, ql, vd_procrustes_informed(s), iterations);
+  return VD_F4(r.x, r.y, r.z, r.w);
 }
 
 /* R_k of active point k as a unit quaternion (x, y, z, w), w >= 0: with iterations = 0 the exact
@@ -139,5 +190,6 @@ VD_INLINE vd_float4 vd_procrustes_point(int k, VD_GLOBAL const int* neighbours, 
   if (iterations <= 0) return vd_mat3_to_quat(vd_procrustes_rotation(s));
   return vd_procrustes_refine(s, warm, iterations);
 }
+#endif /* VD_LANES == 1 */
 
 #endif /* VD_PROCRUSTES_H */

@@ -59,6 +59,49 @@ inline void VD_ATOMIC_MIN_U32(vd_uint* p, vd_uint v) {
 }
 #endif
 
+/* Lanes: a kernel written over vd_lf / vd_li runs VD_LANES consecutive items per work item, as
+ * explicit SIMD. PoCL does not vectorise across work items once its front end has packed a kernel
+ * body into short vectors (its SLP pass runs first; the loop vectoriser then refuses vector-typed
+ * instructions), so on a CPU device the host builds with VD_LANES = the device's preferred float
+ * vector width (16 with AVX-512, 8 with AVX2) and launches ceil(items / VD_LANES) work items (a
+ * Kernel handle marked kLaned, ocl/kernel.h). A GPU and the host reference use one lane: vd_lf is
+ * float there and the same math runs per item. Lane conditions are vd_li masks: combine them with
+ * & and |, and pick with vd_lsel(a, b, c) = c ? b : a, lane by lane. */
+#ifdef __OPENCL_C_VERSION__
+#ifndef VD_LANES
+#define VD_LANES 1
+#endif
+#if VD_LANES == 1
+typedef float vd_lf;
+typedef int vd_li;
+#define vd_lload(p) ((p)[0])
+#define vd_lstore(v, p) ((p)[0] = (v))
+#elif VD_LANES == 4
+typedef float4 vd_lf;
+typedef int4 vd_li;
+#define vd_lload(p) vload4(0, (p))
+#define vd_lstore(v, p) vstore4((v), 0, (p))
+#elif VD_LANES == 8
+typedef float8 vd_lf;
+typedef int8 vd_li;
+#define vd_lload(p) vload8(0, (p))
+#define vd_lstore(v, p) vstore8((v), 0, (p))
+#elif VD_LANES == 16
+typedef float16 vd_lf;
+typedef int16 vd_li;
+#define vd_lload(p) vload16(0, (p))
+#define vd_lstore(v, p) vstore16((v), 0, (p))
+#else
+#error "VD_LANES must be 1, 4, 8 or 16"
+#endif
+#define vd_lsel(a, b, c) select((a), (b), (c))
+#else
+#define VD_LANES 1
+typedef float vd_lf;
+typedef int vd_li;
+inline float vd_lsel(float a, float b, int c) { return c ? b : a; }
+#endif
+
 VD_INLINE int vd_min_i(int a, int b) { return a < b ? a : b; }
 VD_INLINE int vd_max_i(int a, int b) { return a > b ? a : b; }
 VD_INLINE float vd_clampf(float v, float lo, float hi) { return v < lo ? lo : (v > hi ? hi : v); }

@@ -57,6 +57,10 @@ inline constexpr bool kValidParam =
 
 }  // namespace kernel_detail
 
+// Marks a handle whose kernel runs VD_LANES items per work item (Context::lanes()).
+struct Laned {};
+inline constexpr Laned kLaned{};
+
 template <class... Params>
 class Kernel<void(Params...)> {
   static_assert((kernel_detail::kValidParam<Params> && ...),
@@ -64,14 +68,16 @@ class Kernel<void(Params...)> {
 
  public:
   explicit constexpr Kernel(const char* name) : name_(name) {}
+  constexpr Kernel(const char* name, Laned) : name_(name), laned_(true) {}
   constexpr const char* name() const { return name_; }
 
-  // Runs the kernel over `items` work items (none when 0); see Context::Run.
+  // Runs the kernel over `items` items (none when 0): one work item each, or one lane each when the
+  // handle is laned; see Context::Run.
   template <class... Args,
             std::enable_if_t<kernel_detail::AcceptsAll<kernel_detail::List<Params...>, kernel_detail::List<Args&&...>>::value,
                              int> = 0>
   Status operator()(Context& ctx, size_t items, Args&&... args) const {
-    return ctx.Run(name_, kSignature, items, args...);
+    return ctx.Run(name_, kSignature, items, laned_ ? size_t(ctx.lanes()) : size_t(1), args...);
   }
 
  private:
@@ -79,6 +85,7 @@ class Kernel<void(Params...)> {
   // the kernel, so a handle that disagrees with its .cl fails at its first launch.
   static constexpr char kSignature[] = {kernel_detail::kArgKind<Params>..., 's', '\0'};
   const char* name_;
+  bool laned_ = false;
 };
 
 }  // namespace vd::ocl

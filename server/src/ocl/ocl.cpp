@@ -226,6 +226,21 @@ StatusOr<std::string> AssembleProgramSource() {
   return source;
 }
 
+// Lanes of the laned kernels (Context::lanes()): explicit SIMD pays on a CPU device, where PoCL
+// does not vectorise across work items; a GPU runs its work items in lockstep already.
+StatusOr<int> ChooseLanes(const DeviceInfo& device) {
+  if (const char* env = std::getenv("VD_LANES"); env && *env) {
+    const std::string v = env;
+    if (v == "1" || v == "4" || v == "8" || v == "16") return std::stoi(v);
+    return InvalidArgument("VD_LANES='" + v + "': expected 1, 4, 8 or 16");
+  }
+  if (!device.is_cpu) return 1;
+  cl_uint width = 1;
+  if (clGetDeviceInfo(device.id, CL_DEVICE_PREFERRED_VECTOR_WIDTH_FLOAT, sizeof(width), &width, nullptr) != CL_SUCCESS)
+    return 1;
+  return width >= 16 ? 16 : width >= 8 ? 8 : width >= 4 ? 4 : 1;
+}
+
 StatusOr<std::unique_ptr<Context>> Context::Create(const std::string& spec) {
   VD_ASSIGN_OR_RETURN(auto devices, ListDevices());
   if (devices.empty()) return Unavailable("no OpenCL device found.\n" + DescribeDevices(devices));
@@ -256,6 +271,7 @@ StatusOr<std::unique_ptr<Context>> Context::Create(const std::string& spec) {
   if (err != CL_SUCCESS) return ClError(err, "clCreateContext", __FILE__, __LINE__);
   ctx->queue_ = clCreateCommandQueue(ctx->context_, chosen->id, 0, &err);
   if (err != CL_SUCCESS) return ClError(err, "clCreateCommandQueue", __FILE__, __LINE__);
+  VD_ASSIGN_OR_RETURN(ctx->lanes_, ChooseLanes(*chosen));
   VD_RETURN_IF_ERROR(ctx->Build());
   return ctx;
 }
@@ -288,7 +304,7 @@ Status Context::Build() {
   if (err != CL_SUCCESS) return ClError(err, "clCreateProgramWithSource", __FILE__, __LINE__);
   // Argument info lets FindKernel check each handle's read/write/value kinds, not only its count
   // (PoCL reports none without it); it is metadata and leaves the generated code alone.
-  std::string options = "-cl-std=CL1.2 -cl-kernel-arg-info";
+  std::string options = "-cl-std=CL1.2 -cl-kernel-arg-info -DVD_LANES=" + std::to_string(lanes_);
   cl_device_fp_config fp = 0;
   clGetDeviceInfo(device_.id, CL_DEVICE_SINGLE_FP_CONFIG, sizeof(fp), &fp, nullptr);
   // Same division and square root as the host reference where the device can.

@@ -163,6 +163,10 @@ class Context {
 
   // Work-group size of every launch.
   static constexpr size_t kGroupSize = 64;
+  // Items a work item of a laned kernel handles (VD_LANES of the program, shared/vd_compat.h):
+  // the device's preferred float vector width on a CPU device (16 with AVX-512, 8 with AVX2),
+  // 1 elsewhere; $VD_LANES (1, 4, 8 or 16) overrides it, for A/B runs and tests.
+  int lanes() const { return lanes_; }
   // Blocks until every queued command finished (for timing and before host reads).
   Status Finish();
 
@@ -181,8 +185,10 @@ class Context {
   // kernel instead of one per distinct size (PoCL: ~0.1 s each, per frame for mesh-sized ranges).
   // Reached only through a typed Kernel handle (ocl/kernel.h), which checked the arguments and
   // passes its signature (one letter per argument, see FindKernel).
+  // A laned kernel (per_item = lanes()) runs ceil(items / per_item) work items, each over per_item
+  // consecutive items; vd_items is still `items`.
   template <typename... Args>
-  Status Run(const char* name, const char* signature, size_t items, const Args&... args) {
+  Status Run(const char* name, const char* signature, size_t items, size_t per_item, const Args&... args) {
     if (items == 0) return Status::Ok();
     if (items > static_cast<size_t>(INT32_MAX)) return OutOfRange(std::string(name) + ": too many work items");
     VD_ASSIGN_OR_RETURN(cl_kernel k, FindKernel(name, signature));
@@ -191,7 +197,7 @@ class Context {
     (SetArg(k, index++, args, name, &s), ...);
     SetArg(k, index, static_cast<int32_t>(items), name, &s);
     VD_RETURN_IF_ERROR(s);
-    return Enqueue(k, name, items);
+    return Enqueue(k, name, (items + per_item - 1) / per_item);
   }
   // The kernel `name` of the program, created once. Fails when the program's kernel disagrees with
   // `signature`, a letter per argument: 'w' a __global T*, 'r' a __global const T*, 's' a value.
@@ -222,6 +228,7 @@ class Context {
   // '?' for each argument whose kind the device does not report).
   std::map<std::string, std::pair<cl_kernel, std::string>> kernels_;
   std::mutex kernels_mutex_;
+  int lanes_ = 1;
   size_t allocated_bytes_ = 0;
   size_t peak_bytes_ = 0;
   bool profile_enabled_ = std::getenv("VD_PROFILE_KERNELS") != nullptr;
