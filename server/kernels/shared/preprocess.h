@@ -12,6 +12,11 @@ VD_INLINE float vd_depth_convert_pixel(vd_ushort raw, float inv_scale, float min
   return (raw != 0 && d >= min_depth && d <= max_depth) ? d : 0.0f;
 }
 
+/* The weight of a tap at squared pixel distance ds whose depth differs by dd from the centre's; a
+ * macro so that the laned kernel (vd_lf dd) and the per-pixel reference share it. */
+#define VD_BILATERAL_WEIGHT(dd, ds, inv_2sigma_space2, inv_2sigma_depth2) \
+  exp(-(ds) * (inv_2sigma_space2) - (dd) * (dd) * (inv_2sigma_depth2))
+
 /* Edge-preserving smoothing of one pixel (radius in pixels; sigmas in pixels and metres). */
 VD_INLINE float vd_bilateral_pixel(VD_GLOBAL const float* depth, int width, int height, int x, int y, int radius,
                                    float inv_2sigma_space2, float inv_2sigma_depth2) {
@@ -26,7 +31,7 @@ VD_INLINE float vd_bilateral_pixel(VD_GLOBAL const float* depth, int width, int 
       float d = depth[yy * width + xx];
       float dd = d - d0;
       float ds = (float)((xx - x) * (xx - x) + (yy - y) * (yy - y));
-      float w = (d > 0.0f) ? exp(-ds * inv_2sigma_space2 - dd * dd * inv_2sigma_depth2) : 0.0f;
+      float w = (d > 0.0f) ? VD_BILATERAL_WEIGHT(dd, ds, inv_2sigma_space2, inv_2sigma_depth2) : 0.0f;
       sum += w * d;
       wsum += w;
     }

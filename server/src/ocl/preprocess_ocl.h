@@ -12,9 +12,9 @@ namespace vd::ocl {
 // One item per pixel.
 inline constexpr Kernel<void(const Buffer<uint16_t>& raw, Buffer<float>& depth, float inv_scale, float min_depth,
                              float max_depth)> kDepthConvert{"vd_depth_convert"};
-// One item per pixel.
+// Laned, one lane per pixel.
 inline constexpr Kernel<void(const Buffer<float>& in, Buffer<float>& out, int width, int height, int radius,
-                             float inv_2sigma_space2, float inv_2sigma_depth2)> kBilateral{"vd_bilateral"};
+                             float inv_2sigma_space2, float inv_2sigma_depth2)> kBilateral{"vd_bilateral", kLaned};
 // One item per output pixel.
 inline constexpr Kernel<void(const Buffer<float>& in, Buffer<float>& out, int in_width, int out_width,
                              float max_diff)> kPyrDown{"vd_pyr_down"};
