@@ -372,9 +372,8 @@ StatusOr<cl_kernel> Context::FindKernel(const char* name, const char* signature)
   return it->second.first;
 }
 
-Status Context::Enqueue(cl_kernel k, const char* name, size_t items) {
-  const size_t local = kGroupSize;
-  const size_t global = (items + local - 1) / local * local;
+Status Context::Enqueue(cl_kernel k, const char* name, size_t work_items, size_t local) {
+  const size_t global = (work_items + local - 1) / local * local;
   // Development profile ($VD_PROFILE_KERNELS set): every launch waits for the device and its wall
   // time is summed per kernel; the totals are printed when the context goes away.
   const bool profile = profile_enabled_;

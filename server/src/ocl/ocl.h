@@ -197,13 +197,15 @@ class Context {
     (SetArg(k, index++, args, name, &s), ...);
     SetArg(k, index, static_cast<int32_t>(items), name, &s);
     VD_RETURN_IF_ERROR(s);
-    return Enqueue(k, name, (items + per_item - 1) / per_item);
+    // A laned work-group has kGroupSize / per_item work items: as many items as any other, so that
+    // a small range still spreads over the device's cores.
+    return Enqueue(k, name, (items + per_item - 1) / per_item, std::max<size_t>(kGroupSize / per_item, 1));
   }
   // The kernel `name` of the program, created once. Fails when the program's kernel disagrees with
   // `signature`, a letter per argument: 'w' a __global T*, 'r' a __global const T*, 's' a value.
   // Where the device reports no argument info only the count is compared.
   StatusOr<cl_kernel> FindKernel(const char* name, const char* signature);
-  Status Enqueue(cl_kernel k, const char* name, size_t global);
+  Status Enqueue(cl_kernel k, const char* name, size_t work_items, size_t local);
 
   template <typename T>
   static void SetArg(cl_kernel k, cl_uint i, const Buffer<T>& b, const char* name, Status* s) {
