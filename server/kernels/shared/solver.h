@@ -298,17 +298,20 @@ VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const int* neighbour
 }
 
 /* The ARAP part of the right-hand side at point k: sum_j (R_k + R_j)(t^_k - t^_j) (times w_r by
- * the caller). It changes with the rotations, so it is recomputed every position step. */
+ * the caller). It changes with the rotations, so it is recomputed every position step. R_k is
+ * applied once, to the sum of the edges (7 rotations instead of 12). */
 VD_INLINE vd_float4 vd_system_reg_rhs(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
                                       VD_GLOBAL const vd_float4* rot) {
   vd_float4 reg = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  vd_float4 rk = rot[k];
+  vd_float4 edges = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
     if (nb < 0) continue;
     vd_float4 e = vd_neighbour_edge(j, vol.voxel_size);
-    reg = reg + vd_quat_rotate(rk, e) + vd_quat_rotate(rot[nb], e);
+    edges = edges + e;
+    reg = reg + vd_quat_rotate(rot[nb], e);
   }
+  reg = reg + vd_quat_rotate(rot[k], edges);
   reg.w = 0.0f;
   return reg;
 }
