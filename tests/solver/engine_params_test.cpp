@@ -18,7 +18,7 @@ TEST(EngineParamsTest, EveryFieldHasAFlag) {
       {"--voxel-size", "0.006", "--truncation-voxels", "5", "--max-weight", "32", "--min-depth", "0.3", "--max-depth",
        "2.5", "--max-grid-mb", "300", "--volume-margin", "0.2", "--rigid-only", "--k-min", "2", "--no-bilateral",
        "--bilateral-radius", "3", "--bilateral-sigma-space", "4", "--bilateral-sigma-depth", "0.03", "--normal-max-jump",
-       "0.06", "--icp-iterations", "7,6,5", "--icp-degeneracy", "1e-4", "--icp-max-distance", "0.05",
+       "0.06", "--icp-iterations", "7,6,5", "--icp-degeneracy", "1e-4", "--icp-max-distance", "0.05", "--icp-min-step", "2e-6",
        "--icp-max-normal-angle", "20", "--min-inlier-fraction", "0.2", "--max-frame-translation", "0.1",
        "--max-frame-rotation", "15", "--outer-iterations", "2", "--corr-eps-d", "0.01", "--corr-eps-n", "0.4",
        "--corr-eps-v", "0.7", "--w-dense", "1.5", "--w-reg", "3", "--damping", "1e-3", "--levels", "2",
@@ -49,6 +49,7 @@ TEST(EngineParamsTest, EveryFieldHasAFlag) {
   EXPECT_EQ(p.icp_iterations, (std::array<int, 3>{7, 6, 5}));
   EXPECT_FLOAT_EQ(p.icp_degeneracy, 1e-4f);
   EXPECT_FLOAT_EQ(p.icp_max_distance, 0.05f);
+  EXPECT_FLOAT_EQ(p.icp_min_step, 2e-6f);
   EXPECT_FLOAT_EQ(p.icp_max_normal_angle_deg, 20.f);
   EXPECT_FLOAT_EQ(p.min_inlier_fraction, 0.2f);
   EXPECT_FLOAT_EQ(p.max_frame_translation, 0.1f);
@@ -121,6 +122,8 @@ TEST(EngineParamsTest, BadValuesFailValidationNamingTheField) {
       {{"--icp-iterations", "1,2,3,4"}, "three counts"},
       {{"--icp-iterations", "1,x,3"}, "--icp-iterations expects an integer"},
       {{"--icp-iterations", "1,200,3"}, "out of range"},
+      {{"--icp-min-step", "0.01"}, "EngineParams.icp_min_step = 0.01 violates"},
+      {{"--icp-min-step", "-1"}, "EngineParams.icp_min_step = -1 violates"},
   };
   for (const auto& [args, expected] : cases) {
     const Status s = parse(args);

@@ -103,6 +103,8 @@ void EngineParams::Bind(FlagParser* f) {
   f->Add("icp-degeneracy", &icp_degeneracy,
          "ICP information ratio below which a pose direction is held at the last pose (0 = off)");
   f->Add("icp-max-distance", &icp_max_distance, "ICP correspondences farther apart than this are rejected, metres");
+  f->Add("icp-min-step", &icp_min_step,
+         "An ICP pyramid level stops when a pose step |xi| (radians and metres) is below this");
   f->Add("icp-max-normal-angle", &icp_max_normal_angle_deg,
          "ICP correspondences whose normals differ by more than this are rejected, degrees");
   f->Add("min-inlier-fraction", &min_inlier_fraction,
@@ -135,6 +137,8 @@ Status EngineParams::Validate() const {
     if (it < 0 || it > 100) return ParamOutOfBounds("EngineParams", "icp_iterations", it, "0 <= iterations <= 100");
   if (!(icp_degeneracy >= 0.f && icp_degeneracy < 0.1f)) return ParamOutOfBounds("EngineParams", "icp_degeneracy", icp_degeneracy, "0 <= tau < 0.1");
   if (!(icp_max_distance > 0.f)) return ParamOutOfBounds("EngineParams", "icp_max_distance", icp_max_distance, "> 0");
+  if (!(icp_min_step >= 0.f && icp_min_step <= 1e-3f))
+    return ParamOutOfBounds("EngineParams", "icp_min_step", icp_min_step, "0 <= step <= 1e-3");
   if (!(icp_max_normal_angle_deg > 0.f && icp_max_normal_angle_deg <= 90.f))
     return ParamOutOfBounds("EngineParams", "icp_max_normal_angle_deg", icp_max_normal_angle_deg, "0 < angle <= 90");
   if (!(min_inlier_fraction >= 0.f && min_inlier_fraction < 1.f))
@@ -411,7 +415,7 @@ Status Engine::Track(FrameResult* result) {
       if (!step.ok) break;
       T = step.pose;
       xi_total += step.xi;
-      if (step.xi.norm() < 1e-6) break;
+      if (step.xi.norm() < params_.icp_min_step) break;
     }
   }
   result->icp_inliers = sys.inliers;
