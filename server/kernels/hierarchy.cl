@@ -22,10 +22,13 @@ __kernel void vd_level_row_count(__global const uchar* member, VdVolume coarse, 
 
 __kernel void vd_level_restrict_kernel(__global const int* list_c, VdVolume coarse, int s,
                                        __global const int* compact_f, VdVolume fine, __global const float4* x_f,
-                                       __global float4* x0_c, int vd_items) {
+                                       __global const float4* rot_f, __global float4* x0_c, __global float4* rot_c,
+                                       int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
-  x0_c[k] = vd_level_restrict(k, list_c, coarse, s, compact_f, fine, x_f);
+  float4 r;
+  x0_c[k] = vd_level_restrict(k, list_c, coarse, s, compact_f, fine, x_f, rot_f, &r);
+  rot_c[k] = r;
 }
 
 __kernel void vd_level_constraints(__global const VdCorrespondence* cons_f, __global const int* compact_f,

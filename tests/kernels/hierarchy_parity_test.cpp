@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "core/hierarchy.h"
 #include "cpu_ref/cpu_ref.h"
@@ -69,6 +70,14 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
     const vd_float4 r = Rest(f.vol, f.fine.list[k]);
     x_f[k] = r + VD_F4(0.01f * std::sin(9.f * r.y), 0.006f * std::cos(7.f * r.x), 0.004f * std::sin(5.f * r.z), 0.f);
   }
+  // Fine rotations: turns by up to 160 degrees about (0.6, 0.8, 0), every other one stored as -q
+  // (the same rotation), so the mean must align signs.
+  std::vector<vd_float4> rot_f(fine.count);
+  for (size_t k = 0; k < fine.count; ++k) {
+    const float a = 1.4f * float(k + 1) / float(fine.count), sg = k % 2 ? -1.f : 1.f;
+    rot_f[k] = VD_F4(sg * 0.6f * std::sin(a), sg * 0.8f * std::sin(a), 0.f, sg * std::cos(a));
+  }
+  auto d_rot_f = ToDevice(ctx, rot_f);
   auto d_x_f = ToDevice(ctx, x_f);
   // Constraints at the marching-cubes vertices, targets along the normals.
   std::vector<VdCorrespondence> cons;
@@ -100,12 +109,25 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
     EXPECT_LT(got.count, f.fine.list.size() / 2);
 
     auto d_x0 = ctx->Alloc<vd_float4>(got.count);
-    ASSERT_TRUE(d_x0.ok());
-    ASSERT_TRUE(ocl::kLevelRestrict(*ctx, got.count, got.list, cv, s, fine.compact, f.vol, d_x_f, *d_x0).ok());
-    std::vector<vd_float4> x0_ref(got.count);
-    cpu::LevelRestrict(ref, cv, s, f.fine.compact.data(), f.vol, x_f.data(), x0_ref.data());
+    auto d_rot_c = ctx->Alloc<vd_float4>(got.count);
+    ASSERT_TRUE(d_x0.ok() && d_rot_c.ok());
+    ASSERT_TRUE(ocl::RestrictState(*ctx, got.count, got.list, cv, s, fine.compact, f.vol, d_x_f, d_rot_f, *d_x0,
+                                   *d_rot_c).ok());
+    std::vector<vd_float4> x0_ref(got.count), rot_ref(got.count);
+    cpu::LevelRestrict(ref, cv, s, f.fine.compact.data(), f.vol, x_f.data(), rot_f.data(), x0_ref.data(),
+                       rot_ref.data());
     const auto x0 = FromDevice(ctx, *d_x0, got.count);
     EXPECT_TRUE(AllClose(Flatten(x0), Flatten(x0_ref), 1e-6f, 1e-6f));
+    const auto rot_c = FromDevice(ctx, *d_rot_c, got.count);
+    EXPECT_TRUE(AllClose(Flatten(rot_c), Flatten(rot_ref), 1e-6f, 0.f));
+    // Every coarse point has fine points around it: a unit quaternion about the fine rotations'
+    // axis turning the same way (q or -q), never the identity fallback.
+    for (size_t K = 0; K < got.count; ++K) {
+      const vd_float4 q = rot_ref[K];
+      EXPECT_NEAR(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w, 1.f, 1e-5f) << K;
+      EXPECT_NEAR(q.x * 0.8f, q.y * 0.6f, 1e-5f) << K;  // the same axis (0.6, 0.8, 0)
+      EXPECT_GT(q.w < 0.f ? -q.y : q.y, 0.f) << K;  // a turn the positive way, as every fine one
+    }
 
     auto d_cc = ctx->Alloc<VdCorrespondence>(nc);
     ASSERT_TRUE(d_cc.ok());
@@ -151,8 +173,18 @@ TEST(HierarchyParityTest, TranslatedFieldIsExact) {
   const int s = 4;
   const VdVolume cv = LevelVolume(f.vol, s);
   const cpu::ActiveSet lvl = cpu::BuildLevel(f.fine.list, f.vol, s, cv);
-  std::vector<vd_float4> x0(lvl.list.size());
-  cpu::LevelRestrict(lvl, cv, s, f.fine.compact.data(), f.vol, x_f.data(), x0.data());
+  std::vector<vd_float4> x0(lvl.list.size()), rot_c(lvl.list.size());
+  // One rotation everywhere (half of the points store it as -q): every coarse point gets it.
+  const vd_float4 q = VD_F4(0.36f, 0.48f, 0.f, 0.8f);
+  std::vector<vd_float4> rot_f(f.fine.list.size());
+  for (size_t k = 0; k < rot_f.size(); ++k) rot_f[k] = k % 2 ? -q : q;
+  cpu::LevelRestrict(lvl, cv, s, f.fine.compact.data(), f.vol, x_f.data(), rot_f.data(), x0.data(), rot_c.data());
+  for (const vd_float4& r : rot_c) {
+    const float sg = r.w < 0.f ? -1.f : 1.f;
+    ASSERT_NEAR(sg * r.x, q.x, 1e-6f);
+    ASSERT_NEAR(sg * r.y, q.y, 1e-6f);
+    ASSERT_NEAR(sg * r.w, q.w, 1e-6f);
+  }
   for (size_t k = 0; k < x0.size(); ++k) {
     const vd_float4 want = Rest(cv, lvl.list[k]) + d;
     ASSERT_NEAR(x0[k].x, want.x, 1e-6f);

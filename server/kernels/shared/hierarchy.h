@@ -30,12 +30,20 @@ VD_INLINE int vd_level_corner_index(int x, int y, int z, int s, VdVolume coarse,
   return vd_grid_index(coarse, cx + (o & 1), cy + ((o >> 1) & 1), cz + ((o >> 2) & 1));
 }
 
-/* x0 of coarse active point K. */
+/* x0 of coarse active point K (returned): its rest position plus the tent-weighted mean
+ * displacement of the active fine points within s of it; and in *rot_c the warm start of its
+ * rotation, the normalised tent-weighted mean of their rotations (identity when there are none).
+ * The coarse rotation step then refines that (vd_procrustes_refine_lanes) instead of solving from
+ * nothing by SVD: a coarse neighbourhood is a smoothed fine one, so its optimum is near the mean
+ * fine rotation there, as a fine point's is near its last frame's. */
 VD_INLINE vd_float4 vd_level_restrict(int K, VD_GLOBAL const int* list_c, VdVolume coarse, int s,
-                                      VD_GLOBAL const int* compact_f, VdVolume fine, VD_GLOBAL const vd_float4* x_f) {
+                                      VD_GLOBAL const int* compact_f, VdVolume fine, VD_GLOBAL const vd_float4* x_f,
+                                      VD_GLOBAL const vd_float4* rot_f, vd_float4* rot_c) {
   int X, Y, Z;
   vd_grid_coords(list_c[K], coarse, &X, &Y, &Z);
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  vd_float4 qsum = VD_F4(0.0f, 0.0f, 0.0f, 0.0f), qref = VD_F4(0.0f, 0.0f, 0.0f, 1.0f);
+  int found = 0;
   float wsum = 0.0f;
   float inv = 1.0f / (float)(s + 1);
   for (int dz = -s; dz <= s; ++dz) {
@@ -53,12 +61,20 @@ VD_INLINE vd_float4 vd_level_restrict(int K, VD_GLOBAL const int* list_c, VdVolu
                   (1.0f - (float)(dz < 0 ? -dz : dz) * inv);
         acc = acc + (x_f[kf] - vd_rest_position(fine, x, y, z)) * w;
         wsum += w;
+        /* q and -q are one rotation: each is added on the side of the first one met. */
+        vd_float4 q = rot_f[kf];
+        if (!found) qref = q;
+        found = 1;
+        if (vd_dot3(q, qref) + q.w * qref.w < 0.0f) q = -q;
+        qsum = qsum + q * w;
       }
     }
   }
   vd_float4 p = vd_rest_position(coarse, X, Y, Z);
   if (wsum > 0.0f) p = p + acc * (1.0f / wsum);
   p.w = 0.0f;
+  float qn = sqrt(vd_dot3(qsum, qsum) + qsum.w * qsum.w);
+  *rot_c = qn > 0.0f ? qsum * (1.0f / qn) : VD_F4(0.0f, 0.0f, 0.0f, 1.0f);
   return p;
 }
 

@@ -67,14 +67,16 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
       Level& L = *levels_[i];
       if (L.active.count == 0) continue;
       const int s = L.spacing;
-      VD_RETURN_IF_ERROR(ocl::RestrictPositions(ctx, L.active.count, L.active.list, L.vol, s, fine_active_->compact,
-                                                v.vol, fine_.positions(), L.x0));
+      VD_RETURN_IF_ERROR(ctx.Reserve(&L.rot0, std::max<size_t>(L.active.count, 1)));
+      VD_RETURN_IF_ERROR(ocl::RestrictState(ctx, L.active.count, L.active.list, L.vol, s, fine_active_->compact, v.vol,
+                                            fine_.positions(), fine_.rotations(), L.x0, L.rot0));
       VD_RETURN_IF_ERROR(ctx.Reserve(&L.cons, std::max<size_t>(nc, 1)));
       VD_RETURN_IF_ERROR(ocl::RestrictConstraints(ctx, nc, fine_.constraints(), fine_active_->compact, v.vol,
                                                   fine_.positions(), s, L.active.compact, L.vol, L.x0, L.cons));
       VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.vol, L.active, L.cons, nc));
-      VD_RETURN_IF_ERROR(L.solver.InitState(L.x0));
-      // Rotations of the restricted state first, then the flip-flop.
+      // Rotations warm-started from the fine ones (the mean of the last frame's around each point)
+      // and refined for the restricted state first, then the flip-flop.
+      VD_RETURN_IF_ERROR(L.solver.InitState(L.x0, L.rot0));
       VD_RETURN_IF_ERROR(L.solver.RotationStep());
       VD_ASSIGN_OR_RETURN(SolverSummary ls, L.solver.Solve(params.coarse_flip_flop_iterations, false));
 

@@ -41,8 +41,9 @@ class HierarchicalSolver {
     DeviceActiveSet active;
     ocl::Buffer<uint8_t> member;
     ocl::Buffer<uint32_t> row_count, row_offset;
-    // Restricted starting positions and the constraints re-expressed on this level.
-    ocl::Buffer<vd_float4> x0;
+    // Restricted starting positions, warm-start rotations, and the constraints re-expressed on
+    // this level.
+    ocl::Buffer<vd_float4> x0, rot0;
     ocl::Buffer<VdCorrespondence> cons;
     DeviceSolver solver;
   };

@@ -81,6 +81,14 @@ Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0) {
   return ctx.Fill(rot_, VD_F4(0.f, 0.f, 0.f, 1.f), m_);
 }
 
+Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0, const ocl::Buffer<vd_float4>& rot0) {
+  ocl::Context& ctx = ops_->ctx();
+  if (m_ == 0) return Status::Ok();
+  VD_RETURN_IF_ERROR(ctx.Copy(x0, x_, m_));
+  rot_warm_ = true;
+  return ctx.Copy(rot0, rot_, m_);
+}
+
 Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
                                       const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
   ocl::Context& ctx = ops_->ctx();

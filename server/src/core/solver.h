@@ -66,14 +66,17 @@ class DeviceSolver {
   Status Setup(const DeviceVolume& v, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
                size_t num_pixels);
   // The two halves of Setup for a grid level without a stored field (coarse levels): constraints
-  // grouped by the cells of `vol`, then positions x0 with identity rotations.
+  // grouped by the cells of `vol`, then positions x0 with identity rotations (solved exactly by
+  // the first rotation step) or with the warm-start rotations rot0 (refined).
   Status SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
                           const ocl::Buffer<VdCorrespondence>& constraints, size_t n);
   Status InitState(const ocl::Buffer<vd_float4>& x0);
+  Status InitState(const ocl::Buffer<vd_float4>& x0, const ocl::Buffer<vd_float4>& rot0);
   // Position step: PCG from the current positions; returns the iterations used.
   StatusOr<int> PositionStep();
   // Rotation step: Procrustes for every active point, refined from the current rotations when
-  // they are warm (after Setup or a rotation step), exact after InitState.
+  // they are warm (after Setup, InitState with rotations or a rotation step), exact after
+  // InitState without.
   Status RotationStep();
   // E_total at the current state, and its two parts.
   StatusOr<double> Energy(double* dense = nullptr, double* reg = nullptr);

@@ -168,10 +168,11 @@ ActiveSet BuildLevel(const std::vector<int32_t>& fine_list, VdVolume fine, int s
 }
 
 void LevelRestrict(const ActiveSet& level, VdVolume coarse, int s, const int32_t* compact_f, VdVolume fine,
-                   const vd_float4* x_f, vd_float4* x0_c) {
+                   const vd_float4* x_f, const vd_float4* rot_f, vd_float4* x0_c, vd_float4* rot_c) {
   const int m = int(level.list.size());
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < m; ++k) x0_c[k] = vd_level_restrict(k, level.list.data(), coarse, s, compact_f, fine, x_f);
+  for (int k = 0; k < m; ++k)
+    x0_c[k] = vd_level_restrict(k, level.list.data(), coarse, s, compact_f, fine, x_f, rot_f, &rot_c[k]);
 }
 
 void LevelConstraints(const VdCorrespondence* cons_f, int n, const int32_t* compact_f, VdVolume fine,

@@ -53,7 +53,7 @@ ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol);
 // active list: sequential marking and compaction, independent of the device's scan.
 ActiveSet BuildLevel(const std::vector<int32_t>& fine_list, VdVolume fine, int s, VdVolume coarse);
 void LevelRestrict(const ActiveSet& level, VdVolume coarse, int s, const int32_t* compact_f, VdVolume fine,
-                   const vd_float4* x_f, vd_float4* x0_c);
+                   const vd_float4* x_f, const vd_float4* rot_f, vd_float4* x0_c, vd_float4* rot_c);
 void LevelConstraints(const VdCorrespondence* cons_f, int n, const int32_t* compact_f, VdVolume fine,
                       const vd_float4* x_f, int s, const int32_t* compact_c, VdVolume coarse, const vd_float4* x0_c,
                       VdCorrespondence* cons_c);

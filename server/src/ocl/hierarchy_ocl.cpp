@@ -12,10 +12,10 @@ Status CountLevelRows(Context& ctx, const Buffer<uint8_t>& member, VdVolume coar
   return kLevelRowCount(ctx, size_t(coarse.dim_y) * coarse.dim_z, member, coarse, row_count);
 }
 
-Status RestrictPositions(Context& ctx, size_t n, const Buffer<int32_t>& list_c, VdVolume coarse, int s,
-                         const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<vd_float4>& x_f,
-                         Buffer<vd_float4>& x0_c) {
-  return kLevelRestrict(ctx, n, list_c, coarse, s, compact_f, fine, x_f, x0_c);
+Status RestrictState(Context& ctx, size_t n, const Buffer<int32_t>& list_c, VdVolume coarse, int s,
+                     const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<vd_float4>& x_f,
+                     const Buffer<vd_float4>& rot_f, Buffer<vd_float4>& x0_c, Buffer<vd_float4>& rot_c) {
+  return kLevelRestrict(ctx, n, list_c, coarse, s, compact_f, fine, x_f, rot_f, x0_c, rot_c);
 }
 
 Status RestrictConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons_f,

@@ -17,8 +17,8 @@ inline constexpr Kernel<void(const Buffer<uint8_t>& member, VdVolume coarse,
                              Buffer<uint32_t>& row_count)> kLevelRowCount{"vd_level_row_count"};
 // One item per coarse active point.
 inline constexpr Kernel<void(const Buffer<int32_t>& list_c, VdVolume coarse, int s, const Buffer<int32_t>& compact_f,
-                             VdVolume fine, const Buffer<vd_float4>& x_f,
-                             Buffer<vd_float4>& x0_c)> kLevelRestrict{"vd_level_restrict_kernel"};
+                             VdVolume fine, const Buffer<vd_float4>& x_f, const Buffer<vd_float4>& rot_f,
+                             Buffer<vd_float4>& x0_c, Buffer<vd_float4>& rot_c)> kLevelRestrict{"vd_level_restrict_kernel"};
 // One item per fine constraint.
 inline constexpr Kernel<void(const Buffer<VdCorrespondence>& cons_f, const Buffer<int32_t>& compact_f, VdVolume fine,
                              const Buffer<vd_float4>& x_f, int s, const Buffer<int32_t>& compact_c, VdVolume coarse,
@@ -37,10 +37,10 @@ Status MarkLevel(Context& ctx, size_t n, const Buffer<int32_t>& list_f, VdVolume
                  Buffer<uint8_t>& member);
 // Members per coarse grid row, for the scan that places each row's members in the list.
 Status CountLevelRows(Context& ctx, const Buffer<uint8_t>& member, VdVolume coarse, Buffer<uint32_t>& row_count);
-// The n coarse points' starting positions x0_c from the current fine state.
-Status RestrictPositions(Context& ctx, size_t n, const Buffer<int32_t>& list_c, VdVolume coarse, int s,
-                         const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<vd_float4>& x_f,
-                         Buffer<vd_float4>& x0_c);
+// The n coarse points' starting positions x0_c and rotations rot_c from the fine state.
+Status RestrictState(Context& ctx, size_t n, const Buffer<int32_t>& list_c, VdVolume coarse, int s,
+                     const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<vd_float4>& x_f,
+                     const Buffer<vd_float4>& rot_f, Buffer<vd_float4>& x0_c, Buffer<vd_float4>& rot_c);
 // The n fine constraints re-expressed on the coarse grid, so the level solves for an increment.
 Status RestrictConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons_f,
                            const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<vd_float4>& x_f, int s,
