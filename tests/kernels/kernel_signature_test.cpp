@@ -1,5 +1,7 @@
 // Typed kernel handles (ocl/kernel.h): a launch that does not match the declared signature does
 // not compile, and a handle that disagrees with its .cl fails at its first launch.
+#include <cstdlib>
+
 #include <gtest/gtest.h>
 
 #include <type_traits>
@@ -73,6 +75,24 @@ TEST(KernelSignatureTest, AHandleThatDisagreesWithItsKernelFailsAtLaunch) {
   const Status kind = kReadOnly(*ctx, 1, neighbours, t, t, rot, 0);
   ASSERT_FALSE(kind.ok());
   EXPECT_NE(kind.message().find("'rrrrss'"), std::string::npos) << kind.ToString();
+}
+
+// $VD_LANES picks the lane width of the laned kernels; anything but 1, 4, 8 or 16 is refused with
+// a message naming it, before a program is built.
+TEST(KernelSignatureTest, LaneWidthFromTheEnvironmentIsCheckedAndUsed) {
+  VD_REQUIRE_OCL(ctx);
+  EXPECT_TRUE(ctx->lanes() == 1 || ctx->lanes() == 4 || ctx->lanes() == 8 || ctx->lanes() == 16) << ctx->lanes();
+  if (ctx->device().is_cpu) EXPECT_GT(ctx->lanes(), 1) << "a CPU device runs the laned kernels as SIMD";
+  setenv("VD_LANES", "3", 1);
+  auto bad = Context::Create(ctx->device().device_name);
+  setenv("VD_LANES", "8", 1);
+  auto eight = Context::Create(ctx->device().device_name);
+  unsetenv("VD_LANES");
+  ASSERT_FALSE(bad.ok());
+  EXPECT_NE(bad.status().message().find("VD_LANES='3': expected 1, 4, 8 or 16"), std::string::npos)
+      << bad.status().ToString();
+  ASSERT_TRUE(eight.ok()) << eight.status().ToString();
+  EXPECT_EQ((*eight)->lanes(), 8);
 }
 
 }  // namespace
