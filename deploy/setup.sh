@@ -20,11 +20,15 @@ done
 packages=(cmake ninja-build g++ pkg-config ccache libgtest-dev libbenchmark-dev
   libopenni2-dev libopencv-dev libeigen3-dev liblcm-dev liblcm-bin libglib2.0-dev
   libdraco-dev draco pocl-opencl-icd ocl-icd-opencl-dev opencl-headers
-  opencl-clhpp-headers clinfo iproute2 procps libssl-dev clang libclang-rt-14-dev)
+  opencl-clhpp-headers clinfo iproute2 procps libssl-dev clang libclang-rt-14-dev
+  libboost-dev nodejs chromium python3-websocket)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
 done
+# npm is its own Debian package; a nodejs build that bundles npm (and conflicts with the package)
+# already provides the command.
+command -v npm >/dev/null 2>&1 || dpkg -s npm >/dev/null 2>&1 || missing+=(npm)
 if [ ${#missing[@]} -gt 0 ]; then
   echo "setup: installing ${#missing[@]} missing package(s): ${missing[*]}"
   sudo_cmd=()
@@ -36,6 +40,15 @@ if [ ${#missing[@]} -gt 0 ]; then
   DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
 else
   echo "setup: all ${#packages[@]} packages present"
+fi
+
+# The web page's JavaScript (three.js with its Draco decoder, uPlot), pinned by package-lock.json;
+# vdeform-web serves it from the build folder. npm ci only when the lock file changed.
+web="$here/viewer_client/web"
+if ! cmp -s "$web/package-lock.json" "$web/node_modules/.vd-installed-lock" 2>/dev/null; then
+  echo "setup: npm ci in viewer_client/web"
+  (cd "$web" && npm ci --no-audit --no-fund --loglevel=error)
+  cp "$web/package-lock.json" "$web/node_modules/.vd-installed-lock"
 fi
 
 # PoCL needs a writable kernel cache or it reports zero devices.
