@@ -1,6 +1,5 @@
 // vdeform-viewer: subscribes to the server's meshes and status, shows them in a window or as a
 // terminal status line, and saves PLY files and PNG renderings. See --help.
-#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -35,48 +34,6 @@ void InstallSignalHandlers() {
   sigaction(SIGINT, &action, nullptr);
   sigaction(SIGTERM, &action, nullptr);
 }
-
-// Columns of the terminal on stdout (80 when unknown), so the \r-refreshed line never wraps.
-size_t TerminalColumns() {
-  winsize size{};
-  if (ioctl(STDOUT_FILENO, TIOCGWINSZ, &size) == 0 && size.ws_col > 0) return size.ws_col;
-  return 80;
-}
-
-// The status line: refreshed in place four times a second on a terminal, one line a second
-// otherwise (logs, pipes).
-class StatusPrinter {
- public:
-  explicit StatusPrinter(bool enabled) : enabled_(enabled), tty_(isatty(STDOUT_FILENO) != 0) {}
-  void Tick(const vd::MeshReceiver& receiver) {
-    if (!enabled_) return;
-    const auto now = std::chrono::steady_clock::now();
-    const auto period = tty_ ? std::chrono::milliseconds(250) : std::chrono::milliseconds(1000);
-    if (now - last_ < period) return;
-    last_ = now;
-    std::string line = vd::StatusLine(receiver.stats(), receiver.last_status());
-    if (tty_) {
-      const size_t columns = TerminalColumns();
-      if (line.size() >= columns) line.resize(columns - 1);
-      std::printf("\r%s\033[K", line.c_str());
-      printed_on_line_ = true;
-    } else {
-      std::printf("%s\n", line.c_str());
-    }
-    std::fflush(stdout);
-  }
-  // Ends the in-place line so what follows starts on a fresh one.
-  void Finish() {
-    if (printed_on_line_) std::printf("\n");
-    printed_on_line_ = false;
-  }
-
- private:
-  bool enabled_;
-  bool tty_;
-  bool printed_on_line_ = false;
-  std::chrono::steady_clock::time_point last_{};
-};
 
 int Main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
@@ -133,7 +90,7 @@ int Main(int argc, char** argv) {
   vd::RunOptions run;
   run.count = options.count;
   run.timeout_s = options.timeout_s;
-  StatusPrinter printer(!options.quiet && !windowed);
+  vd::StatusPrinter printer(!options.quiet && !windowed);
   std::unique_ptr<vd::MeshWindow> window;
   if (windowed) {
     vd::StatusOr<std::unique_ptr<vd::MeshWindow>> opened =
@@ -142,7 +99,7 @@ int Main(int argc, char** argv) {
       window = std::move(opened).value();
     } else {
       VD_LOG_WARNING << opened.status().ToString() << ": running headless";
-      printer = StatusPrinter(!options.quiet);
+      printer = vd::StatusPrinter(!options.quiet);
     }
   }
   std::function<void()> tick;
@@ -153,7 +110,7 @@ int Main(int argc, char** argv) {
       if (!window->Update(receiver, 10)) g_stop.store(true);
     };
   } else {
-    tick = [&] { printer.Tick(receiver); };
+    tick = [&] { printer.Tick([&] { return vd::StatusLine(receiver.stats(), receiver.last_status()); }); };
   }
 
   vd::Status ran = receiver.Run(run, &g_stop, tick);
