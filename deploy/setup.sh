@@ -21,7 +21,7 @@ packages=(cmake ninja-build g++ pkg-config ccache libgtest-dev libbenchmark-dev
   libopenni2-dev libopencv-dev libeigen3-dev liblcm-dev liblcm-bin libglib2.0-dev
   libdraco-dev draco pocl-opencl-icd ocl-icd-opencl-dev opencl-headers
   opencl-clhpp-headers clinfo iproute2 procps libssl-dev clang libclang-rt-14-dev
-  libboost-dev nodejs chromium python3-websocket)
+  libboost-dev nodejs chromium python3-websocket python3-pil)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")

@@ -5,8 +5,9 @@ import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { DRACOLoader } from 'three/addons/loaders/DRACOLoader.js';
 import uPlot from './vendor/uplot/dist/uPlot.esm.js';
 
-// What tests and scripts read: mirrored into #vd-stats as data-* attributes.
-const stats = { meshes: 0, lastSeq: -1, vertices: 0, triangles: 0, state: '', stream: '' };
+// What tests and scripts read: mirrored into #vd-stats as data-* attributes. connectToMeshMs: from
+// the socket's opening to the first mesh shown on it (a late tab, a reconnect), -1 until then.
+const stats = { meshes: 0, lastSeq: -1, vertices: 0, triangles: 0, state: '', stream: '', connectToMeshMs: -1 };
 window.vdeformStats = stats;
 const statsElement = document.getElementById('vd-stats');
 function publishStats() {
@@ -184,6 +185,7 @@ function show(kind, header, geometry) {
     viewFitted = true;
   }
   stats.meshes += 1;
+  if (stats.connectToMeshMs < 0) stats.connectToMeshMs = Math.round(performance.now() - openedAt);
   stats.lastSeq = header.seq;
   stats.vertices = vertices;
   stats.triangles = geometry.index ? geometry.index.count / 3 : 0;
@@ -286,6 +288,7 @@ function showStreams(streams) {
 // ---- the connection ----------------------------------------------------------------------------
 let socket = null;
 let retryMs = 250;
+let openedAt = 0;
 const chosen = new URLSearchParams(location.search).get('stream');
 if (chosen !== null) stats.stream = chosen;
 
@@ -329,6 +332,8 @@ function connect() {
   socket.binaryType = 'arraybuffer';
   socket.onopen = () => {
     retryMs = 250;
+    openedAt = performance.now();
+    stats.connectToMeshMs = -1;
     connElement.textContent = 'live';
     connElement.className = 'ok';
     if (stats.stream) send(`stream ${stats.stream}`);
