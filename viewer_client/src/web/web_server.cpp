@@ -216,9 +216,16 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   void FailBadInput(websocket::close_code code, const std::string& reason) {
     hub_->Count([](WebServerStats& s) { ++s.closed_bad_input; });
     Detach();
-    // The close frame's reason is limited to 123 bytes.
-    websocket::close_reason close(code, reason.substr(0, 120));
-    ws_.async_close(close, [self = shared_from_this()](beast::error_code) { self->Close(); });
+    // A message frame of ours still going out would interleave with a close frame: just hang up.
+    if (writing_) return Close();
+    // Otherwise say why (the reason is limited to 123 bytes), and hang up if the peer does not
+    // answer the close within a second.
+    ws_.async_close(websocket::close_reason(code, reason.substr(0, 120)),
+                    [self = shared_from_this()](beast::error_code) { self->Close(); });
+    write_timer_.expires_after(std::chrono::seconds(1));
+    write_timer_.async_wait([self = shared_from_this()](beast::error_code ec) {
+      if (!ec) self->Close();
+    });
   }
 
   void DoWrite() {
