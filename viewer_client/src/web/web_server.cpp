@@ -87,10 +87,8 @@ class Hub : public std::enable_shared_from_this<Hub> {
     std::lock_guard<std::mutex> lock(stats_mutex_);
     return stats_.connections < options_.max_clients + kHttpConnectionSlots;
   }
-  bool ClientAvailable() {
-    std::lock_guard<std::mutex> lock(stats_mutex_);
-    return stats_.clients < options_.max_clients;
-  }
+  // Counts pages still in their handshake too, so a burst of upgrades cannot pass the limit.
+  bool ClientAvailable() const { return ws_sessions_.size() < static_cast<size_t>(options_.max_clients); }
 
   void Attach(WsSession* session);
   void Detach(WsSession* session);
@@ -101,8 +99,11 @@ class Hub : public std::enable_shared_from_this<Hub> {
   void OnMesh(const std::string& stream, bool live, Payload frame);
   void OnStatus(const std::string& stream, Payload json);
 
-  void RegisterHttp(HttpSession* session) { http_sessions_.insert(session); }
-  void UnregisterHttp(HttpSession* session) { http_sessions_.erase(session); }
+  // Every live connection, for CloseAll (a page between its upgrade and Attach included).
+  void Register(HttpSession* session) { http_sessions_.insert(session); }
+  void Unregister(HttpSession* session) { http_sessions_.erase(session); }
+  void Register(WsSession* session) { ws_sessions_.insert(session); }
+  void Unregister(WsSession* session) { ws_sessions_.erase(session); }
   // Closes every connection; pending operations complete with errors and the sessions end.
   void CloseAll();
 
@@ -120,6 +121,7 @@ class Hub : public std::enable_shared_from_this<Hub> {
   Payload streams_json_;
   std::set<WsSession*> sessions_;
   std::set<HttpSession*> http_sessions_;
+  std::set<WsSession*> ws_sessions_;
   mutable std::mutex stats_mutex_;
   WebServerStats stats_;
 };
@@ -137,8 +139,13 @@ class WsSession : public std::enable_shared_from_this<WsSession> {
   enum Slot { kStreams = 0, kStatus, kLive, kCanonical, kNumSlots };
 
   WsSession(tcp::socket socket, std::shared_ptr<Hub> hub, std::unique_ptr<ConnectionSlot> slot)
-      : ws_(std::move(socket)), write_timer_(ws_.get_executor()), hub_(std::move(hub)), slot_(std::move(slot)) {}
-  ~WsSession() { Detach(); }
+      : ws_(std::move(socket)), write_timer_(ws_.get_executor()), hub_(std::move(hub)), slot_(std::move(slot)) {
+    hub_->Register(this);
+  }
+  ~WsSession() {
+    Detach();
+    hub_->Unregister(this);
+  }
 
   void Run(http::request<http::empty_body> request) {
     if (std::optional<std::string> stream = QueryParameter(View(request.target()), "stream");
@@ -379,9 +386,9 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
  public:
   HttpSession(tcp::socket socket, std::shared_ptr<Hub> hub)
       : stream_(std::move(socket)), hub_(std::move(hub)), slot_(std::make_unique<ConnectionSlot>(hub_)) {
-    hub_->RegisterHttp(this);
+    hub_->Register(this);
   }
-  ~HttpSession() { hub_->UnregisterHttp(this); }
+  ~HttpSession() { hub_->Unregister(this); }
 
   void Run() { DoRead(); }
   void Close() {
@@ -478,7 +485,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 };
 
 void Hub::CloseAll() {
-  for (WsSession* session : std::vector<WsSession*>(sessions_.begin(), sessions_.end())) session->Close();
+  for (WsSession* session : std::vector<WsSession*>(ws_sessions_.begin(), ws_sessions_.end())) session->Close();
   for (HttpSession* session : std::vector<HttpSession*>(http_sessions_.begin(), http_sessions_.end()))
     session->Close();
 }
