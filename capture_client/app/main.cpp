@@ -1,6 +1,5 @@
 // vdeform-capture: reads RGB-D frames from a sensor, a recording, a data set folder or a synthetic
 // scene, compresses them and publishes vdeform::rgbd_frame_t on the LCM frame channel.
-#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -22,6 +21,7 @@
 #include "vd/common/flags.h"
 #include "vd/common/log.h"
 #include "vd/common/messages.h"
+#include "vd/common/stop_signal.h"
 
 namespace vd {
 namespace {
@@ -34,9 +34,7 @@ with sequence numbers from 0 and utime = capture time.)";
 constexpr const char* kEpilogue =
     "Exit status: 0 on success or after SIGINT/SIGTERM, 1 on a run-time error, 2 on bad arguments.\n";
 
-std::atomic<bool> g_stop{false};
-
-void OnSignal(int) { g_stop.store(true); }
+std::atomic<bool>& g_stop = vd::StopFlag();
 
 struct Args {
   std::string source = "synthetic:tube";
@@ -211,11 +209,7 @@ int Run(const Args& a) {
               << (pacing.lockstep ? ", lockstep" : "") << ", depth " << DepthEncodingName(a.encode.depth)
               << ", colour " << ColorEncodingName(a.encode.color) << (a.frame_key.empty() ? "" : ", signed");
 
-  struct sigaction action = {};
-  action.sa_handler = OnSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  vd::InstallStopSignalHandlers();
 
   // (epoch, seq) names each frame of this run: the server tells our restart (a new epoch) from
   // a recording of an earlier run played back.

@@ -253,6 +253,9 @@ def main(build):
         shot = cdp.call("Page.captureScreenshot", {"format": "png", "clip": {**rect, "scale": 1}}, tab1)
         image = Image.open(io.BytesIO(base64.b64decode(shot["data"]))).convert("RGB")
         image.save(f"{build}/web_test_screenshot.png")
+        page = cdp.call("Page.captureScreenshot", {"format": "png"}, tab1)
+        with open(f"{build}/web_test_page.png", "wb") as f:
+            f.write(base64.b64decode(page["data"]))
         pixels = list(image.getdata())
         differing = sum(1 for p in pixels if max(abs(p[i] - BACKGROUND[i]) for i in range(3)) > 8)
         fraction = differing / len(pixels)

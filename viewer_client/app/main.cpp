@@ -4,7 +4,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -15,6 +14,7 @@
 
 #include "vd/common/log.h"
 #include "vd/common/messages.h"
+#include "vd/common/stop_signal.h"
 #include "vd/viewer/display.h"
 #include "vd/viewer/receiver.h"
 #include "vd/viewer/status_text.h"
@@ -22,18 +22,6 @@
 #include "window.h"
 
 namespace {
-
-std::atomic<bool> g_stop{false};
-
-void OnSignal(int) { g_stop.store(true); }
-
-void InstallSignalHandlers() {
-  struct sigaction action {};
-  action.sa_handler = OnSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-}
 
 int Main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
@@ -48,7 +36,8 @@ int Main(int argc, char** argv) {
     return 0;
   }
   if (options.quiet) vd::SetLogLevel(vd::LogLevel::kWarning);
-  InstallSignalHandlers();
+  vd::InstallStopSignalHandlers();
+  std::atomic<bool>& g_stop = vd::StopFlag();
 
   bool windowed = !options.headless;
   if (windowed) {

@@ -4,7 +4,6 @@
 
 #include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -19,26 +18,13 @@
 #include "vd/common/auth.h"
 #include "vd/common/log.h"
 #include "vd/common/messages.h"
+#include "vd/common/stop_signal.h"
 #include "vd/viewer/status_text.h"
 #include "vd/viewer/web_options.h"
 #include "vd/viewer/web_protocol.h"
 #include "vd/viewer/web_server.h"
 
 namespace {
-
-std::atomic<bool> g_stop{false};
-
-void OnSignal(int) { g_stop.store(true); }
-
-void InstallSignalHandlers() {
-  struct sigaction action {};
-  action.sa_handler = OnSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-  // A browser closing its socket mid-write must not kill the process.
-  signal(SIGPIPE, SIG_IGN);
-}
 
 std::string ExecutableDir() {
   std::error_code ec;
@@ -189,7 +175,8 @@ int Main(int argc, char** argv) {
     VD_LOG_WARNING << "serving on " << options.server.bind
                    << " without --token-file: anyone who reaches this port sees the reconstruction";
   }
-  InstallSignalHandlers();
+  vd::InstallStopSignalHandlers();
+  std::atomic<bool>& g_stop = vd::StopFlag();
 
   vd::StatusOr<std::string> root = vd::FindWebRoot(options.web_root, ExecutableDir());
   vd::StatusOr<vd::WebAssets> assets = root.ok() ? vd::WebAssets::Load(*root) : root.status();

@@ -204,7 +204,7 @@ let fpsPlot = null, stagePlot = null;
 
 function plotOptions(series, element) {
   return {
-    width: element.clientWidth || 330, height: 140, legend: { show: true },
+    width: Math.min(element.clientWidth || 330, 330), height: 140, legend: { show: true },
     scales: { x: { time: true } },
     series: [{}, ...series.map((label, i) => ({ label, stroke: `hsl(${(i * 67) % 360} 70% 42%)`, width: 1.5 }))],
   };
