@@ -172,6 +172,30 @@ def wait_stats(cdp, tab, condition, seconds, what):
     raise Failure(f"{what} within {seconds} s; the page shows {stats}")
 
 
+def check_log(run, logger, plys):
+    """Reads the recorded session back with the Python script; its rows must match what was saved."""
+    time.sleep(0.5)
+    run.stop(logger)
+    script = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "viewer_client", "python",
+                          "vdeform_log.py")
+    result = subprocess.run([sys.executable, script, f"{run.work}/session.lcm", "--types",
+                             f"{run.build}/lcmtypes/python"], capture_output=True, text=True, timeout=60)
+    if result.returncode != 0:
+        raise Failure(f"vdeform_log.py exited {result.returncode}: {result.stderr.strip()}")
+    lines = result.stdout.strip().splitlines()
+    print("vdeform_log.py: " + lines[0] + " ... " + lines[-1])
+    rows = {int(line.split()[0]): line.split() for line in lines[1:-1]}
+    for ply in plys:
+        seq = int(re.match(r"frame-(\d+)", ply).group(1))
+        vertices = ply_vertices(f"{run.work}/view/{ply}")
+        if seq not in rows or rows[seq][3] != str(vertices) or rows[seq][6] != "TRACKING" or rows[seq][1] == "-":
+            raise Failure(f"vdeform_log.py row for frame {seq}: {rows.get(seq)}, expected {vertices} vertices, "
+                          "a frame size and TRACKING")
+    if not lines[-1].startswith(f"{len(plys)} frames, {len(plys)} live meshes"):
+        raise Failure(f"vdeform_log.py summary: {lines[-1]}")
+    return lines
+
+
 def main(build):
     run = Run(build)
     failed = True
@@ -224,6 +248,7 @@ def main(build):
         tab1 = cdp.open_tab(base + f"?token={token}")
         wait_stats(cdp, tab1, lambda s: "meshes" in s, 20, "the page did not load")
 
+        logger = run.start("logger", ["lcm-logger", f"--lcm-url={run.lcm}", "-q", "-f", f"{run.work}/session.lcm"])
         capture = run.start("capture", [f"{build}/capture_client/vdeform-capture", "--source", "synthetic:tube",
                                         "--count", str(FRAMES), "--lockstep", "--lockstep-timeout", "30",
                                         "--lcm-url", run.lcm, "--quiet"])
@@ -233,6 +258,7 @@ def main(build):
         if not plys:
             raise Failure("the native viewer saved no mesh")
         last_seq = int(re.match(r"frame-(\d+)", plys[-1]).group(1))
+        check_log(run, logger, plys)
         stats = wait_stats(cdp, tab1, lambda s: s.get("lastSeq") == last_seq, 30,
                            f"the page did not show the last frame {last_seq}")
         expected = ply_vertices(f"{run.work}/view/{plys[-1]}")
