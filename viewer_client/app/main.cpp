@@ -64,6 +64,7 @@ int Main(int argc, char** argv) {
   receiver_options.color_mode = options.color_mode;
   receiver_options.request_mesh = !options.no_request;
   receiver_options.sender = "vdeform-viewer:" + std::to_string(getpid());
+  receiver_options.channels = *vd::ChannelsOfStream(options.stream);
   // Saving every mesh matters more than latency: ride out ~8 s of a 30 Hz server at 2x our pace.
   if (!options.save_dir.empty()) receiver_options.mesh_queue_capacity = 240;
   vd::StatusOr<std::unique_ptr<vd::MeshReceiver>> created = vd::MeshReceiver::Create(&lcm, receiver_options);
@@ -72,7 +73,8 @@ int Main(int argc, char** argv) {
     return 1;
   }
   vd::MeshReceiver& receiver = **created;
-  VD_LOG_INFO << "listening on " << url << " (" << vd::kMeshChannel << ", " << vd::kStatusChannel << ")"
+  VD_LOG_INFO << "listening on " << url << " (" << receiver_options.channels.mesh << ", "
+              << receiver_options.channels.status << ")"
               << (receiver.stats().requests_sent > 0 ? "; asked the server for its current meshes" : "")
               << (options.save_dir.empty() ? "" : "; saving to " + options.save_dir);
 

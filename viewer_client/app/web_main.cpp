@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -63,8 +64,8 @@ class MeshRequester {
     msg.auth_size = 0;
     last_ = now;
     ++sent_;
-    if (lcm_->publish(vd::kControlChannel, &msg) != 0)
-      VD_LOG_WARNING << "cannot publish REQUEST_MESH on " << vd::kControlChannel;
+    const std::string channel = vd::ChannelsOfStream(stream).value().control;
+    if (lcm_->publish(channel, &msg) != 0) VD_LOG_WARNING << "cannot publish REQUEST_MESH on " << channel;
   }
   int64_t sent() const { return sent_; }
   int64_t asked() const {
@@ -85,12 +86,14 @@ class MeshRequester {
 // The LCM side: decodes what arrives just enough to check it, and hands it to the web server.
 class Forwarder {
  public:
-  explicit Forwarder(vd::WebServer* server) : server_(server) {}
+  Forwarder(vd::WebServer* server, MeshRequester* requester) : server_(server), requester_(requester) {}
 
-  void OnMesh(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  void OnMesh(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+    const std::optional<std::string> stream = vd::StreamOfChannel(channel, "MESH");
+    if (!stream) return;
     vd::StatusOr<vdeform::mesh_t> msg = vd::DecodeLcm<vdeform::mesh_t>(buffer->data, buffer->data_size);
     if (!msg.ok()) return Refuse("malformed mesh_t", msg.status(), &meshes_refused_);
-    vd::StatusOr<std::string> frame = vd::MeshFrame(*msg, "");
+    vd::StatusOr<std::string> frame = vd::MeshFrame(*msg, *stream);
     if (!frame.ok()) return Refuse("unusable mesh", frame.status(), &meshes_refused_);
     bytes_ += static_cast<int64_t>(frame->size());
     ++meshes_;
@@ -98,17 +101,21 @@ class Forwarder {
       last_seq_ = msg->seq;
       last_vertices_ = msg->num_vertices;
     }
-    server_->PublishMesh("", msg->kind == vdeform::mesh_t::KIND_LIVE, std::move(frame).value());
+    server_->PublishMesh(*stream, msg->kind == vdeform::mesh_t::KIND_LIVE, std::move(frame).value());
   }
 
-  void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) {
+  void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
+    const std::optional<std::string> stream = vd::StreamOfChannel(channel, "STATUS");
+    if (!stream) return;
     vd::StatusOr<vdeform::server_status_t> msg =
         vd::DecodeLcm<vdeform::server_status_t>(buffer->data, buffer->data_size);
     if (!msg.ok()) return Refuse("malformed server_status_t", msg.status(), &status_refused_);
     ++status_;
     state_ = vd::ServerStateName(msg->state);
     fps_ = msg->fps;
-    server_->PublishStatus("", vd::StatusJson(*msg, ""));
+    // A stream heard for the first time: ask its server for the current meshes.
+    if (streams_.insert(*stream).second) requester_->Ask(*stream);
+    server_->PublishStatus(*stream, vd::StatusJson(*msg, *stream));
   }
 
   std::string Line(const vd::WebServerStats& web, const MeshRequester& requests) const {
@@ -127,6 +134,7 @@ class Forwarder {
               std::to_string(web.refused_full + web.refused_connections) + ", bad " +
               std::to_string(web.closed_bad_input) + ", stalled " + std::to_string(web.closed_stalled);
     line += status_ ? " | server " + state_ + " " + fps + " fps" : " | server: no status yet";
+    if (streams_.size() > 1) line += " (" + std::to_string(streams_.size()) + " streams)";
     return line;
   }
 
@@ -138,11 +146,13 @@ class Forwarder {
   }
 
   vd::WebServer* server_;
+  MeshRequester* requester_;
   int64_t meshes_ = 0, meshes_refused_ = 0, status_ = 0, status_refused_ = 0, bytes_ = 0;
   int64_t last_seq_ = -1, last_vertices_ = 0;
   std::string state_;
   float fps_ = 0;
   std::set<std::string> logged_;
+  std::set<std::string> streams_;
 };
 
 int Main(int argc, char** argv) {
@@ -199,21 +209,27 @@ int Main(int argc, char** argv) {
     return 1;
   }
   vd::WebServer& server = **started;
-  Forwarder forwarder(&server);
-  lcm::Subscription* mesh_sub = lcm.subscribe(vd::kMeshChannel, &Forwarder::OnMesh, &forwarder);
-  lcm::Subscription* status_sub = lcm.subscribe(vd::kStatusChannel, &Forwarder::OnStatus, &forwarder);
+  Forwarder forwarder(&server, &requester);
+  // One stream's channels, or every stream's (LCM subscribes by regular expression).
+  const std::string mesh_channels = options.stream ? vd::ChannelsOfStream(*options.stream).value().mesh
+                                                   : vd::AllStreamsChannelRegex("MESH");
+  const std::string status_channels = options.stream ? vd::ChannelsOfStream(*options.stream).value().status
+                                                     : vd::AllStreamsChannelRegex("STATUS");
+  lcm::Subscription* mesh_sub = lcm.subscribe(mesh_channels, &Forwarder::OnMesh, &forwarder);
+  lcm::Subscription* status_sub = lcm.subscribe(status_channels, &Forwarder::OnStatus, &forwarder);
   if (!mesh_sub || !status_sub) {
-    std::fprintf(stderr, "vdeform-web: cannot subscribe to %s and %s\n", vd::kMeshChannel, vd::kStatusChannel);
+    std::fprintf(stderr, "vdeform-web: cannot subscribe to %s and %s\n", mesh_channels.c_str(),
+                 status_channels.c_str());
     return 1;
   }
   // Ask at once, so the first page to connect finds the current mesh here.
-  requester.Ask("");
+  requester.Ask(options.stream.value_or(""));
   const std::string host = options.server.bind.find(':') != std::string::npos ? "[" + options.server.bind + "]"
                                                                               : options.server.bind;
   // The URL line is printed even with --quiet: scripts (deploy/demo.sh --web, the tests) read it.
   std::printf("vdeform-web: serving http://%s:%d/%s (LCM %s; %s, %s; pages from %s)\n", host.c_str(), server.port(),
-              options.server.token.empty() ? "" : "?token=...", url.c_str(), vd::kMeshChannel, vd::kStatusChannel,
-              root->c_str());
+              options.server.token.empty() ? "" : "?token=...", url.c_str(), mesh_channels.c_str(),
+              status_channels.c_str(), root->c_str());
   std::fflush(stdout);
 
   vd::StatusPrinter printer(!options.quiet);

@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "vd/common/flags.h"
+#include "vd/common/messages.h"
 
 namespace vd {
 namespace {
@@ -28,6 +29,14 @@ void Bind(FlagParser* f, WebOptions* o) {
          "LCM URL to listen on. Default: $LCM_DEFAULT_URL if set, else "
          "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304.",
          "URL");
+  f->AddCustom("stream", "NAME", "every stream",
+               "Forward only the stream NAME (channels VDEFORM_<NAME>_MESH, _STATUS, _CONTROL; '' = the unnamed "
+               "VDEFORM_MESH ...). Default: every stream heard; the page lists them and switches between them.",
+               [o](const std::string& v) {
+                 VD_RETURN_IF_ERROR(ValidateStreamName(v).WithContext("--stream"));
+                 o->stream = v;
+                 return Status::Ok();
+               });
   f->Add("bind", &o->server.bind, "Address the page is served on (loopback keeps it on this host; 0.0.0.0: all).",
          "ADDR");
   f->Add("port", &o->server.port, "TCP port of the page and its WebSocket (0: any free port, printed at start).", "N");

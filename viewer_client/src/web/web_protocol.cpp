@@ -216,17 +216,6 @@ std::string StreamsJson(const std::vector<std::string>& streams) {
   return out + "]}";
 }
 
-Status ValidateStreamName(std::string_view name) {
-  if (name.size() > kMaxStreamNameBytes)
-    return InvalidArgument("stream name of " + std::to_string(name.size()) + " characters; at most " +
-                           std::to_string(kMaxStreamNameBytes) + " are allowed");
-  for (char c : name) {
-    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
-    if (!ok) return InvalidArgument("stream name '" + std::string(name) + "' may hold only A-Z a-z 0-9 _ -");
-  }
-  return Status::Ok();
-}
-
 StatusOr<ClientCommand> ParseClientCommand(std::string_view text) {
   if (text.size() > kMaxClientMessageBytes)
     return InvalidArgument("a command of " + std::to_string(text.size()) + " bytes (at most " +

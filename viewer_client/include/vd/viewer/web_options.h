@@ -1,6 +1,7 @@
 #pragma once
 // vdeform-web's command line: flags, defaults, validation and --help text. The server-side
 // parameters live in WebServerOptions (their one home); the flags bind to them.
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,8 @@ namespace vd {
 struct WebOptions {
   // LCM URL; empty: $LCM_DEFAULT_URL, else vd::kDefaultLcmUrl (see ResolveLcmUrl).
   std::string lcm_url;
+  // --stream NAME: forward only that stream ("" = the unnamed one); unset: every stream heard.
+  std::optional<std::string> stream;
   // Address, port, client limit and write time-out of the HTTP/WebSocket server. Its token is
   // read from token_file by the program.
   WebServerOptions server;

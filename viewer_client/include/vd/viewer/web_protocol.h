@@ -19,6 +19,7 @@
 #include <vdeform/mesh_t.hpp>
 #include <vdeform/server_status_t.hpp>
 
+#include "vd/common/messages.h"
 #include "vd/common/status.h"
 
 namespace vd {
@@ -26,8 +27,6 @@ namespace vd {
 inline constexpr char kMeshFrameMagic[] = "VDM1";
 // Longest message a page may send; its commands are a few bytes, a stream name at most 64.
 inline constexpr size_t kMaxClientMessageBytes = 256;
-// Longest stream name (the channel VDEFORM_<NAME>_MESH stays short).
-inline constexpr size_t kMaxStreamNameBytes = 64;
 // The cookie the page's response sets, so its scripts and socket carry the token by themselves.
 inline constexpr const char* kTokenCookie = "vdeform_token";
 
@@ -52,8 +51,6 @@ struct ClientCommand {
 };
 // Parses a page's text message; InvalidArgument for anything else (the bridge closes on it).
 StatusOr<ClientCommand> ParseClientCommand(std::string_view text);
-// Stream names: 1..64 of [A-Z0-9_] (they become part of LCM channel names); empty = the default.
-Status ValidateStreamName(std::string_view name);
 
 // The path of a request target without its query ("/a/b?x=1" -> "/a/b").
 std::string_view TargetPath(std::string_view target);
