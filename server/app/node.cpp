@@ -328,7 +328,12 @@ class Node::Impl {
 
   // Encodes the meshes of `result` for publishing; called with mutex_ held.
   void KeepMeshes(const FrameResult& result, int64_t seq) {
-    auto live = MeshToMessage(result.live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE);
+    // Every live mesh carries its vertices' canonical positions (same vertices, same order), so
+    // viewers colour by canonical position on every frame, not only when a canonical mesh came.
+    TriangleMesh live_mesh = result.live_mesh;
+    if (result.canonical_mesh.positions.size() == live_mesh.positions.size())
+      live_mesh.canonical = result.canonical_mesh.positions;
+    auto live = MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE);
     auto canonical = MeshToMessage(result.canonical_mesh, NowUs(), seq, vdeform::mesh_t::KIND_CANONICAL);
     if (live.ok()) last_live_ = std::move(live).value();
     else VD_LOG_WARNING << "cannot encode live mesh: " << live.status().ToString();

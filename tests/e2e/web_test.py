@@ -269,6 +269,9 @@ def main(build):
             raise Failure(f"the page decoded {stats['meshes']} meshes, expected at least {MIN_MESHES}")
         if int(stats["dom"]["vertices"]) != expected or int(stats["dom"]["lastSeq"]) != last_seq:
             raise Failure(f"data-vertices {stats['dom']} != {expected} vertices of frame {last_seq}")
+        # Every live mesh carries its canonical positions: Fig. 8 colouring on every frame.
+        if stats["colouring"] != "canonical":
+            raise Failure(f"the page colours frame {last_seq} by {stats['colouring']}, not by canonical position")
         if stats["dom"]["state"] != "TRACKING" or int(stats["dom"]["meshes"]) != stats["meshes"]:
             raise Failure(f"#vd-stats disagrees with the server or window.vdeformStats: {stats}")
 
@@ -294,7 +297,7 @@ def main(build):
         tab2 = cdp.open_tab(base + f"?token={token}")
         late = wait_stats(cdp, tab2, lambda s: s.get("meshes", 0) >= 1, 20, "the late tab shows no mesh")
         print(f"late tab: frame {late['lastSeq']} shown {late['connectToMeshMs']} ms after its socket opened")
-        if late["lastSeq"] != last_seq or int(late["dom"]["vertices"]) != expected:
+        if late["lastSeq"] != last_seq or int(late["dom"]["vertices"]) != expected or late["colouring"] != "canonical":
             raise Failure(f"the late tab shows {late}, expected frame {last_seq} with {expected} vertices")
         if not 0 <= late["connectToMeshMs"] <= 1000:
             raise Failure(f"the late tab needed {late['connectToMeshMs']} ms (> 1 s) for the current mesh")

@@ -7,7 +7,9 @@ import uPlot from './vendor/uplot/dist/uPlot.esm.js';
 
 // What tests and scripts read: mirrored into #vd-stats as data-* attributes. connectToMeshMs: from
 // the socket's opening to the first mesh shown on it (a late tab, a reconnect), -1 until then.
-const stats = { meshes: 0, lastSeq: -1, vertices: 0, triangles: 0, state: '', stream: '', connectToMeshMs: -1 };
+// colouring: what the view is coloured by right now (canonical, vertex, grey).
+const stats = { meshes: 0, lastSeq: -1, vertices: 0, triangles: 0, state: '', stream: '', connectToMeshMs: -1,
+  colouring: '' };
 window.vdeformStats = stats;
 const statsElement = document.getElementById('vd-stats');
 function publishStats() {
@@ -125,6 +127,7 @@ function applyColors() {
   material.color.set(used === 'grey' ? 0xb4b4b4 : 0xffffff);
   material.needsUpdate = true;
   colorNote.textContent = used === mode ? '' : `(${mode} not available for this frame: ${used})`;
+  stats.colouring = used;
 }
 colorSelect.addEventListener('change', applyColors);
 
@@ -134,8 +137,15 @@ draco.setDecoderPath('./vendor/three/examples/jsm/libs/draco/');
 let decoding = false;
 const waiting = { live: null, canonical: null };
 
+// vdeform's meshes carry their attributes under fixed Draco unique ids: position 0, colour 1, and
+// in live meshes the canonical positions 3 (common/src/draco_codec.cpp). A mesh without one of them
+// (an older server, no colour) fails that decode and is decoded by attribute type instead.
+const ids = { position: 0, color: 1, canonical: 3 };
+const types = { position: 'Float32Array', color: 'Float32Array', canonical: 'Float32Array' };
 function decode(bytes) {
-  return new Promise((resolve, reject) => draco.parse(bytes, resolve, reject));
+  // The worker takes the buffer it is given: hand it a copy, the fallback needs the bytes.
+  return new Promise((resolve, reject) => draco.decodeDracoFile(
+    bytes.slice(0), resolve, ids, types, THREE.SRGBColorSpace, () => draco.parse(bytes, resolve, reject)));
 }
 
 async function decodeNext() {
