@@ -90,7 +90,7 @@ class Forwarder {
 
   void OnMesh(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
     const std::optional<std::string> stream = vd::StreamOfChannel(channel, "MESH");
-    if (!stream) return;
+    if (!stream || !Known(*stream)) return;
     vd::StatusOr<vdeform::mesh_t> msg = vd::DecodeLcm<vdeform::mesh_t>(buffer->data, buffer->data_size);
     if (!msg.ok()) return Refuse("malformed mesh_t", msg.status(), &meshes_refused_);
     vd::StatusOr<std::string> frame = vd::MeshFrame(*msg, *stream);
@@ -106,15 +106,13 @@ class Forwarder {
 
   void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
     const std::optional<std::string> stream = vd::StreamOfChannel(channel, "STATUS");
-    if (!stream) return;
+    if (!stream || !Known(*stream)) return;
     vd::StatusOr<vdeform::server_status_t> msg =
         vd::DecodeLcm<vdeform::server_status_t>(buffer->data, buffer->data_size);
     if (!msg.ok()) return Refuse("malformed server_status_t", msg.status(), &status_refused_);
     ++status_;
     state_ = vd::ServerStateName(msg->state);
     fps_ = msg->fps;
-    // A stream heard for the first time: ask its server for the current meshes.
-    if (streams_.insert(*stream).second) requester_->Ask(*stream);
     server_->PublishStatus(*stream, vd::StatusJson(*msg, *stream));
   }
 
@@ -135,10 +133,25 @@ class Forwarder {
               std::to_string(web.closed_bad_input) + ", stalled " + std::to_string(web.closed_stalled);
     line += status_ ? " | server " + state_ + " " + fps + " fps" : " | server: no status yet";
     if (streams_.size() > 1) line += " (" + std::to_string(streams_.size()) + " streams)";
+    if (streams_refused_) line += " | " + std::to_string(streams_refused_) + " messages of streams beyond " +
+                                  std::to_string(vd::kMaxStreams) + " dropped";
     return line;
   }
 
  private:
+  // Whether the bridge keeps this stream: the first kMaxStreams names heard (anyone on the group
+  // can make up names; the web server holds the same bound). A new one gets its meshes asked for.
+  bool Known(const std::string& stream) {
+    if (streams_.count(stream)) return true;
+    if (streams_.size() >= vd::kMaxStreams) {
+      ++streams_refused_;
+      return false;
+    }
+    streams_.insert(stream);
+    requester_->Ask(stream);
+    return true;
+  }
+
   void Refuse(const std::string& kind, const vd::Status& status, int64_t* counter) {
     ++*counter;
     if (logged_.insert(kind).second)
@@ -153,6 +166,7 @@ class Forwarder {
   float fps_ = 0;
   std::set<std::string> logged_;
   std::set<std::string> streams_;
+  int64_t streams_refused_ = 0;
 };
 
 int Main(int argc, char** argv) {
