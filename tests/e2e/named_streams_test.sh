@@ -4,7 +4,7 @@
 # every stream. Asserts that each server received exactly its own capture's frames (none of the
 # other's, nothing foreign or rejected), that each viewer saved exactly its own stream's meshes
 # (counts and the scene's vertex counts differ), that vdeform-control reaches each server by its
-# stream, and that vdeform-web lists both streams.
+# stream, that vdeform-web lists both streams, and that its page switches between them.
 #   named_streams_test.sh BUILD_DIR
 set -uo pipefail
 build=$1
@@ -65,6 +65,17 @@ EOF
 echo "vdeform-web: streams ${streams/SKIP/(not checked: python3-websocket missing)}"
 
 sleep 1.5
+# The page opens on one stream and switches to the other (headless chromium; skipped without it).
+declare -A vertices
+for s in A B; do
+  last=$(ls "$work/view$s"/frame-*.mesh.ply 2>/dev/null | tail -1)
+  [ -n "$last" ] || fail "viewer $s saved no mesh"
+  vertices[$s]=$(head -c 400 "$last" | grep -a -m1 "^element vertex" | awk '{print $3}')
+done
+"$(dirname "$0")/web_streams_check.py" "$web_port" "$work" "A=${vertices[A]}" "B=${vertices[B]}" >"$work/page.log" 2>&1
+rc=$?
+cat "$work/page.log"
+[ $rc -eq 0 ] || [ $rc -eq 77 ] || fail "the page did not switch streams"
 for s in A B; do
   processed=$("$build/server/vdeform-control" --lcm-url "$url" --stream "$s" --command status --wait 3 |
     sed -n 's/^frames_processed=//p')
@@ -73,7 +84,6 @@ done
 kill -INT "${pids[@]}"
 for p in "${pids[@]}"; do wait "$p" || fail "a process exited non-zero after SIGINT"; done
 pids=()
-declare -A vertices
 for s in A B; do
   n=${frames[$s]}
   line=$(grep "^vdeform-server: received" "$work/server$s.log") || fail "server $s printed no summary"

@@ -37,49 +37,11 @@ def skip(reason):
 
 
 try:
-    import websocket  # python3-websocket
     from PIL import Image  # python3-pil
 except ImportError as e:
-    skip(f"{e.name} is missing (deploy/setup.sh installs python3-websocket and python3-pil)")
-
-CHROMIUM = shutil.which("chromium")
-if not CHROMIUM:
-    skip("Debian's chromium is not installed (deploy/setup.sh installs it)")
-
-
-class Failure(Exception):
-    pass
-
-
-class Cdp:
-    """A DevTools protocol client over the browser's WebSocket (flat sessions)."""
-
-    def __init__(self, url):
-        self.ws = websocket.create_connection(url, timeout=60, suppress_origin=True)
-        self.next_id = 0
-
-    def call(self, method, params=None, session=None):
-        self.next_id += 1
-        message = {"id": self.next_id, "method": method, "params": params or {}}
-        if session:
-            message["sessionId"] = session
-        self.ws.send(json.dumps(message))
-        while True:
-            reply = json.loads(self.ws.recv())
-            if reply.get("id") == self.next_id:
-                if "error" in reply:
-                    raise Failure(f"{method}: {reply['error']}")
-                return reply["result"]
-
-    def open_tab(self, url):
-        target = self.call("Target.createTarget", {"url": url})["targetId"]
-        return self.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
-
-    def evaluate(self, session, expression):
-        result = self.call("Runtime.evaluate", {"expression": expression, "returnByValue": True}, session)
-        if "exceptionDetails" in result:
-            raise Failure(f"{expression}: {result['exceptionDetails']}")
-        return result["result"].get("value")
+    skip(f"{e.name} is missing (deploy/setup.sh installs python3-pil)")
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from cdp import Failure, start_chromium, wait_stats  # noqa: E402 (skips without chromium)
 
 
 class Run:
@@ -160,18 +122,6 @@ def ply_vertices(path):
     return int(re.search(r"element vertex (\d+)", header).group(1))
 
 
-def wait_stats(cdp, tab, condition, seconds, what):
-    end = time.time() + seconds
-    stats = None
-    while time.time() < end:
-        stats = cdp.evaluate(tab, "JSON.stringify({...window.vdeformStats, dom: {...document.getElementById('vd-stats')?.dataset}})")
-        stats = json.loads(stats) if stats else None
-        if stats and condition(stats):
-            return stats
-        time.sleep(0.2)
-    raise Failure(f"{what} within {seconds} s; the page shows {stats}")
-
-
 def check_log(run, logger, plys):
     """Reads the recorded session back with the Python script; its rows must match what was saved."""
     time.sleep(0.5)
@@ -229,22 +179,7 @@ def main(build):
             raise Failure(f"the page with the token answered {status}, Set-Cookie {headers.get('Set-Cookie')}")
         print("token: missing and wrong tokens get 403 (page, file, socket); the right one 200")
 
-        profile = f"{run.work}/chromium"
-        chromium = run.start("chromium", [
-            CHROMIUM, "--headless=new", "--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
-            "--enable-unsafe-swiftshader", "--remote-debugging-port=0", f"--user-data-dir={profile}",
-            "--no-first-run", "--disable-extensions", "--disable-background-networking",
-            "--disable-background-timer-throttling", "--disable-renderer-backgrounding",
-            "--disable-backgrounding-occluded-windows", "--window-size=1100,700", "about:blank"])
-        end = time.time() + 30
-        while not os.path.exists(f"{profile}/DevToolsActivePort"):
-            if chromium.poll() is not None or time.time() > end:
-                raise Failure("chromium did not start its DevTools endpoint")
-            time.sleep(0.1)
-        time.sleep(0.2)
-        with open(f"{profile}/DevToolsActivePort") as f:
-            devtools_port, path = f.read().split()[:2]
-        cdp = Cdp(f"ws://127.0.0.1:{devtools_port}{path}")
+        chromium, cdp = start_chromium(run.start, f"{run.work}/chromium")
         tab1 = cdp.open_tab(base + f"?token={token}")
         wait_stats(cdp, tab1, lambda s: "meshes" in s, 20, "the page did not load")
 
