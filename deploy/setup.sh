@@ -1,18 +1,22 @@
 #!/usr/bin/env bash
 # Installs the missing Debian packages (apt only when something is missing), then configures and
 # builds Release into build/. Idempotent; fast when nothing changed.
-#   deploy/setup.sh [--build-dir DIR] [--sanitize] [--no-build]
+#   deploy/setup.sh [--build-dir DIR] [--sanitize] [--no-build] [--no-test-packages]
+# --no-test-packages leaves out what only the tests use (chromium, python3-websocket, python3-pil),
+# for images that only run the programs (deploy/Containerfile).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 build_dir="$here/build"
 sanitize=OFF
 do_build=1
+test_packages=1
 while [ $# -gt 0 ]; do
   case "$1" in
     --build-dir) build_dir=$2; shift 2 ;;
     --sanitize) sanitize=ON; shift ;;
     --no-build) do_build=0; shift ;;
-    -h|--help) sed -n '2,4p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --no-test-packages) test_packages=0; shift ;;
+    -h|--help) sed -n '2,6p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "setup.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -21,7 +25,9 @@ packages=(cmake ninja-build g++ pkg-config ccache libgtest-dev libbenchmark-dev
   libopenni2-dev libopencv-dev libeigen3-dev liblcm-dev liblcm-bin libglib2.0-dev
   libdraco-dev draco pocl-opencl-icd ocl-icd-opencl-dev opencl-headers
   opencl-clhpp-headers clinfo iproute2 procps libssl-dev clang libclang-rt-14-dev
-  libboost-dev nodejs chromium python3-websocket python3-pil)
+  libboost-dev nodejs)
+# The web viewer's browser test drives Debian's chromium over the DevTools protocol.
+[ "$test_packages" -eq 0 ] || packages+=(chromium python3-websocket python3-pil)
 missing=()
 for p in "${packages[@]}"; do
   dpkg -s "$p" >/dev/null 2>&1 || missing+=("$p")
