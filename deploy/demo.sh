@@ -3,7 +3,9 @@
 # three programs on this host, headless. Sets up what is missing, starts vdeform-server and a
 # headless vdeform-viewer, streams the scene with vdeform-capture (lockstep, so nothing is lost),
 # stops everything cleanly and prints a summary and the paths of what was written.
-#   deploy/demo.sh [--scene NAME] [--frames N] [--voxel-size M] [--out DIR]
+#   deploy/demo.sh [--scene NAME] [--frames N] [--voxel-size M] [--out DIR] [--web [--web-port N]]
+# --web also starts vdeform-web, prints the page's URL, and keeps it and the server running after
+# the stream until Ctrl-C, so the last mesh stays on the page.
 # Environment: VD_LCM_URL overrides the LCM URL (default: a private host-only multicast group).
 set -euo pipefail
 here=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -11,13 +13,17 @@ scene=tube
 frames=60
 voxel=0.004
 out="$here/out/demo"
+web=0
+web_port=8080
 while [ $# -gt 0 ]; do
   case "$1" in
     --scene) scene=$2; shift 2 ;;
     --frames) frames=$2; shift 2 ;;
     --voxel-size) voxel=$2; shift 2 ;;
     --out) out=$2; shift 2 ;;
-    -h|--help) sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+    --web) web=1; shift ;;
+    --web-port) web_port=$2; shift 2 ;;
+    -h|--help) sed -n '2,10p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
     *) echo "demo.sh: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
 done
@@ -53,6 +59,17 @@ pids+=("$server")
   >"$out/viewer.log" 2>&1 &
 viewer=$!
 pids+=("$viewer")
+if [ "$web" -eq 1 ]; then
+  "$bin/viewer_client/vdeform-web" --lcm-url "$url" --port "$web_port" --quiet >"$out/web.log" 2>&1 &
+  web_pid=$!
+  pids+=("$web_pid")
+  for _ in $(seq 1 50); do
+    grep -q "serving http" "$out/web.log" 2>/dev/null && break
+    kill -0 "$web_pid" 2>/dev/null || { echo "demo: vdeform-web failed to start:"; cat "$out/web.log"; exit 1; }
+    sleep 0.1
+  done
+  echo "demo: web viewer at $(grep -o 'http://[^ ]*' "$out/web.log" | head -1)"
+fi
 # The server is ready once it logs its device (kernels built).
 for _ in $(seq 1 300); do
   grep -q "vdeform-server on" "$out/server.log" 2>/dev/null && break
@@ -65,8 +82,15 @@ t0=$(date +%s.%N)
 t1=$(date +%s.%N)
 # Let the last mesh reach the viewer, then stop the viewer and the server (SIGINT: clean exit).
 sleep 1
-kill -INT "$viewer" "$server"
+kill -INT "$viewer"
 wait "$viewer" || true
+if [ "$web" -eq 1 ]; then
+  echo "demo: the stream ended; the web viewer keeps showing it at $(grep -o 'http://[^ ]*' "$out/web.log" | head -1) until Ctrl-C"
+  trap 'echo; echo "demo: stopping"' INT
+  wait "$web_pid" || true
+  trap 'echo "demo: interrupted"; exit 130' INT TERM
+fi
+kill -INT "$server" 2>/dev/null || true
 wait "$server" || true
 pids=()
 

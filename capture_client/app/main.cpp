@@ -1,6 +1,5 @@
 // vdeform-capture: reads RGB-D frames from a sensor, a recording, a data set folder or a synthetic
 // scene, compresses them and publishes vdeform::rgbd_frame_t on the LCM frame channel.
-#include <signal.h>
 #include <unistd.h>
 
 #include <atomic>
@@ -22,6 +21,7 @@
 #include "vd/common/flags.h"
 #include "vd/common/log.h"
 #include "vd/common/messages.h"
+#include "vd/common/stop_signal.h"
 
 namespace vd {
 namespace {
@@ -34,12 +34,12 @@ with sequence numbers from 0 and utime = capture time.)";
 constexpr const char* kEpilogue =
     "Exit status: 0 on success or after SIGINT/SIGTERM, 1 on a run-time error, 2 on bad arguments.\n";
 
-std::atomic<bool> g_stop{false};
-
-void OnSignal(int) { g_stop.store(true); }
+std::atomic<bool>& g_stop = vd::StopFlag();
 
 struct Args {
   std::string source = "synthetic:tube";
+  // --stream: the channels' name; empty: today's names.
+  std::string stream;
   SourceOptions source_options;
   // Used only when --fps is given (has_fps); otherwise the source's own rate.
   double fps = 0.0;
@@ -95,6 +95,14 @@ void Bind(FlagParser* f, Args* a) {
   });
   f->Add("jpeg-quality", &a->encode.jpeg_quality, "JPEG quality, 1..100", "Q");
   f->Add("source-id", &a->source_id, "Source id in every frame (default capture-<hostname>-<pid>)", "ID");
+  f->AddCustom("stream", "NAME", "",
+               "Publish on the stream NAME: channel VDEFORM_<NAME>_FRAMES (lockstep listens to VDEFORM_<NAME>_STATUS), "
+               "for a server started with the same --stream. Default: the unnamed stream (VDEFORM_FRAMES).",
+               [a](const std::string& v) {
+                 VD_RETURN_IF_ERROR(ValidateStreamName(v).WithContext("--stream"));
+                 a->stream = v;
+                 return Status::Ok();
+               });
   f->Add("lcm-url", &a->lcm_url,
          "LCM URL (default: $LCM_DEFAULT_URL, else udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304)", "URL");
   f->Add("frame-key-file", &a->frame_key_file,
@@ -201,21 +209,18 @@ int Run(const Args& a) {
   pacing.lockstep_timeout_s = a.lockstep_timeout_s;
   pacing.lockstep_retries = a.lockstep_retries;
   pacing.source_id = a.source_id;
+  pacing.channels = *ChannelsOfStream(a.stream);
   auto pacer = FramePacer::Create(&lcm, pacing, &g_stop);
   if (!pacer.ok()) {
     std::fprintf(stderr, "vdeform-capture: error: %s\n", pacer.status().ToString().c_str());
     return 1;
   }
-  VD_LOG_INFO << "publishing on " << kFrameChannel << " at " << url << " as '" << a.source_id << "', "
+  VD_LOG_INFO << "publishing on " << pacing.channels.frames << " at " << url << " as '" << a.source_id << "', "
               << (pacing.fps > 0 ? std::to_string(pacing.fps) + " fps" : std::string("max rate"))
               << (pacing.lockstep ? ", lockstep" : "") << ", depth " << DepthEncodingName(a.encode.depth)
               << ", colour " << ColorEncodingName(a.encode.color) << (a.frame_key.empty() ? "" : ", signed");
 
-  struct sigaction action = {};
-  action.sa_handler = OnSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
+  vd::InstallStopSignalHandlers();
 
   // (epoch, seq) names each frame of this run: the server tells our restart (a new epoch) from
   // a recording of an earlier run played back.

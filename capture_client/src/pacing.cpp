@@ -38,8 +38,8 @@ StatusOr<std::unique_ptr<FramePacer>> FramePacer::Create(lcm::LCM* lcm, const Pa
   if (!lcm || !lcm->good()) return Unavailable("FramePacer needs an initialised LCM instance");
   std::unique_ptr<FramePacer> pacer(new FramePacer(lcm, options, stop));
   if (options.lockstep) {
-    pacer->subscription_ = lcm->subscribe(kStatusChannel, &FramePacer::OnStatus, pacer.get());
-    if (!pacer->subscription_) return Unavailable(std::string("cannot subscribe to ") + kStatusChannel);
+    pacer->subscription_ = lcm->subscribe(options.channels.status, &FramePacer::OnStatus, pacer.get());
+    if (!pacer->subscription_) return Unavailable("cannot subscribe to " + options.channels.status);
   }
   return pacer;
 }
@@ -56,7 +56,7 @@ void FramePacer::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) 
   StatusOr<vdeform::server_status_t> msg = DecodeLcm<vdeform::server_status_t>(buffer->data, buffer->data_size);
   if (!msg.ok()) {
     if (stats_.bad_status_messages++ == 0) {
-      VD_LOG_WARNING << "ignoring malformed " << kStatusChannel << " messages: " << msg.status().ToString();
+      VD_LOG_WARNING << "ignoring malformed " << options_.channels.status << " messages: " << msg.status().ToString();
     }
     return;
   }
@@ -103,8 +103,8 @@ Status FramePacer::Send(const vdeform::rgbd_frame_t& msg) {
   }
   const int attempts = options_.lockstep ? options_.lockstep_retries + 1 : 1;
   for (int attempt = 0; attempt < attempts; ++attempt) {
-    if (lcm_->publish(kFrameChannel, &msg) != 0)
-      return Unavailable(std::string("cannot publish frame ") + std::to_string(msg.seq) + " on " + kFrameChannel);
+    if (lcm_->publish(options_.channels.frames, &msg) != 0)
+      return Unavailable("cannot publish frame " + std::to_string(msg.seq) + " on " + options_.channels.frames);
     ++stats_.published;
     if (attempt > 0) ++stats_.resends;
     if (!options_.lockstep) return Status::Ok();

@@ -110,6 +110,15 @@ bool SetMac(const std::optional<Sha256Digest>& mac, int32_t* auth_size, std::vec
   return mac.has_value();
 }
 
+int HexDigit(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+}  // namespace
+
 // The contents of a secret file, after checking it is a regular file only its owner can read.
 StatusOr<std::string> ReadPrivateFile(const std::string& path, const std::string& what) {
   struct stat st {};
@@ -123,15 +132,6 @@ StatusOr<std::string> ReadPrivateFile(const std::string& path, const std::string
   if (!in) return Unavailable("cannot read " + what + " '" + path + "'");
   return ss.str();
 }
-
-int HexDigit(char c) {
-  if (c >= '0' && c <= '9') return c - '0';
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-  return -1;
-}
-
-}  // namespace
 
 Sha256Digest HmacSha256(const std::string& key, const std::string& data) {
   return Hmac(key, data).value_or(Sha256Digest{});

@@ -24,17 +24,43 @@ namespace {
 
 // Octahedral normal quantisation: 10 bits keeps normals within about a degree, enough for shading.
 constexpr int kNormalBits = 10;
+// Fixed unique ids of the attributes, so a decoder that asks by id (the web page's DRACOLoader)
+// finds the canonical positions, a GENERIC attribute, without reading the file's metadata.
+constexpr uint32_t kPositionId = 0, kColorId = 1, kNormalId = 2;
 
 template <typename T>
 int AddAttribute(draco::Mesh* mesh, draco::GeometryAttribute::Type type, draco::DataType data_type, bool normalized,
-                 const T* values, size_t num_points) {
+                 const T* values, size_t num_points, uint32_t unique_id) {
   draco::GeometryAttribute attribute;
   attribute.Init(type, nullptr, 3, data_type, normalized, 3 * sizeof(T), 0);
   const int id = mesh->AddAttribute(attribute, true, static_cast<uint32_t>(num_points));
   draco::PointAttribute* added = mesh->attribute(id);
+  added->set_unique_id(unique_id);
   for (size_t i = 0; i < num_points; ++i)
     added->SetAttributeValue(draco::AttributeValueIndex(static_cast<uint32_t>(i)), values + 3 * i);
   return id;
+}
+
+// Draco quantises positions relative to the bounding box, in float: an extent that overflows
+// (coordinates of both signs near FLT_MAX) makes it cast infinity to an integer and crash, and a
+// box reaching near FLT_MAX dequantises to infinity on the other side. Metres never come near:
+// refuse coordinates and extents beyond kMaxDracoCoordinate.
+Status CheckCoordinates(const std::vector<float>& xyz, const char* what) {
+  TriangleMesh points;
+  points.positions = xyz;
+  float min_xyz[3], max_xyz[3];
+  points.Bounds(min_xyz, max_xyz);
+  for (int a = 0; a < 3; ++a)
+    if (!(max_xyz[a] - min_xyz[a] <= kMaxDracoCoordinate) || !(std::fabs(min_xyz[a]) <= kMaxDracoCoordinate) ||
+        !(std::fabs(max_xyz[a]) <= kMaxDracoCoordinate)) {
+      char text[200];
+      std::snprintf(text, sizeof(text),
+                    "cannot Draco-encode a %s whose coordinates along axis %d (%g .. %g) exceed %g in magnitude "
+                    "or extent",
+                    what, a, min_xyz[a], max_xyz[a], double(kMaxDracoCoordinate));
+      return InvalidArgument(text);
+    }
+  return Status::Ok();
 }
 
 StatusOr<std::vector<uint8_t>> Encode(const draco::Mesh& mesh, const DracoOptions& options, bool sequential,
@@ -42,6 +68,8 @@ StatusOr<std::vector<uint8_t>> Encode(const draco::Mesh& mesh, const DracoOption
   draco::Encoder encoder;
   encoder.SetAttributeQuantization(draco::GeometryAttribute::POSITION, options.position_bits);
   encoder.SetAttributeQuantization(draco::GeometryAttribute::NORMAL, kNormalBits);
+  // The canonical positions are positions too: the same precision.
+  encoder.SetAttributeQuantization(draco::GeometryAttribute::GENERIC, options.position_bits);
   encoder.SetSpeedOptions(options.speed, options.speed);
   encoder.SetTrackEncodedProperties(true);
   if (sequential) encoder.SetEncodingMethod(draco::MESH_SEQUENTIAL_ENCODING);
@@ -185,6 +213,11 @@ StatusOr<TriangleMesh> DecodeUnchecked(const uint8_t* data, size_t size) {
     VD_RETURN_IF_ERROR(CheckAttribute(normal, "NORMAL", draco::DT_FLOAT32, num_points));
     VD_RETURN_IF_ERROR(CopyAttribute(normal, "NORMAL", num_points, &mesh.normals));
   }
+  if (const draco::PointAttribute* canonical = dm.GetAttributeByUniqueId(kDracoCanonicalId);
+      canonical != nullptr && canonical->attribute_type() == draco::GeometryAttribute::GENERIC) {
+    VD_RETURN_IF_ERROR(CheckAttribute(canonical, "canonical", draco::DT_FLOAT32, num_points));
+    VD_RETURN_IF_ERROR(CopyAttribute(canonical, "canonical", num_points, &mesh.canonical));
+  }
   mesh.triangles.resize(3 * num_faces);
   for (size_t f = 0; f < num_faces; ++f) {
     const draco::Mesh::Face& face = dm.face(draco::FaceIndex(static_cast<uint32_t>(f)));
@@ -213,32 +246,24 @@ StatusOr<std::vector<uint8_t>> EncodeMeshDraco(const TriangleMesh& mesh, const D
   VD_RETURN_IF_ERROR(options.Validate());
   VD_RETURN_IF_ERROR(mesh.Validate());
   if (mesh.empty()) return InvalidArgument("cannot Draco-encode a mesh with no triangles");
-  // Draco quantises positions relative to the bounding box, in float: an extent that overflows
-  // (coordinates of both signs near FLT_MAX) makes it cast infinity to an integer and crash, and a
-  // box reaching near FLT_MAX dequantises to infinity on the other side. Metres never come near:
-  // refuse coordinates and extents beyond kMaxDracoCoordinate.
-  float min_xyz[3], max_xyz[3];
-  mesh.Bounds(min_xyz, max_xyz);
-  for (int a = 0; a < 3; ++a)
-    if (!(max_xyz[a] - min_xyz[a] <= kMaxDracoCoordinate) || !(std::fabs(min_xyz[a]) <= kMaxDracoCoordinate) ||
-        !(std::fabs(max_xyz[a]) <= kMaxDracoCoordinate)) {
-      char text[200];
-      std::snprintf(text, sizeof(text),
-                    "cannot Draco-encode a mesh whose coordinates along axis %d (%g .. %g) exceed %g in magnitude "
-                    "or extent",
-                    a, min_xyz[a], max_xyz[a], double(kMaxDracoCoordinate));
-      return InvalidArgument(text);
-    }
+  VD_RETURN_IF_ERROR(CheckCoordinates(mesh.positions, "mesh"));
+  VD_RETURN_IF_ERROR(CheckCoordinates(mesh.canonical, "canonical positions"));
   const size_t num_points = mesh.num_vertices();
   if (num_points > static_cast<size_t>(INT32_MAX)) return InvalidArgument("mesh has too many vertices for Draco");
   try {
     draco::Mesh dm;
     dm.set_num_points(static_cast<uint32_t>(num_points));
-    AddAttribute(&dm, draco::GeometryAttribute::POSITION, draco::DT_FLOAT32, false, mesh.positions.data(), num_points);
+    AddAttribute(&dm, draco::GeometryAttribute::POSITION, draco::DT_FLOAT32, false, mesh.positions.data(), num_points,
+                 kPositionId);
     if (!mesh.colors.empty())
-      AddAttribute(&dm, draco::GeometryAttribute::COLOR, draco::DT_UINT8, true, mesh.colors.data(), num_points);
+      AddAttribute(&dm, draco::GeometryAttribute::COLOR, draco::DT_UINT8, true, mesh.colors.data(), num_points,
+                   kColorId);
     if (options.include_normals && !mesh.normals.empty())
-      AddAttribute(&dm, draco::GeometryAttribute::NORMAL, draco::DT_FLOAT32, false, mesh.normals.data(), num_points);
+      AddAttribute(&dm, draco::GeometryAttribute::NORMAL, draco::DT_FLOAT32, false, mesh.normals.data(), num_points,
+                   kNormalId);
+    if (!mesh.canonical.empty())
+      AddAttribute(&dm, draco::GeometryAttribute::GENERIC, draco::DT_FLOAT32, false, mesh.canonical.data(),
+                   num_points, kDracoCanonicalId);
     dm.SetNumFaces(mesh.num_triangles());
     for (size_t f = 0; f < mesh.num_triangles(); ++f) {
       draco::Mesh::Face face;

@@ -13,11 +13,16 @@ Status TriangleMesh::Validate() const {
                            std::to_string(num_vertices()) + " vertices");
   if (!normals.empty() && normals.size() != positions.size())
     return InvalidArgument("mesh normal count differs from vertex count");
+  if (!canonical.empty() && canonical.size() != positions.size())
+    return InvalidArgument("mesh has " + std::to_string(canonical.size() / 3) + " canonical positions for " +
+                           std::to_string(num_vertices()) + " vertices");
   const int32_t n = static_cast<int32_t>(num_vertices());
   for (int32_t idx : triangles)
     if (idx < 0 || idx >= n) return OutOfRange("mesh triangle index " + std::to_string(idx) + " out of range");
   for (float p : positions)
     if (!std::isfinite(p)) return InvalidArgument("mesh has a non-finite vertex coordinate");
+  for (float p : canonical)
+    if (!std::isfinite(p)) return InvalidArgument("mesh has a non-finite canonical coordinate");
   return Status::Ok();
 }
 

@@ -9,6 +9,43 @@
 #include <vector>
 
 namespace vd {
+
+Status ValidateStreamName(std::string_view name) {
+  if (name.size() > 64)
+    return InvalidArgument("stream name of " + std::to_string(name.size()) + " characters; at most 64 are allowed");
+  for (char c : name) {
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+    if (!ok) return InvalidArgument("stream name '" + std::string(name) + "' may hold only A-Z a-z 0-9 _ -");
+  }
+  return Status::Ok();
+}
+
+StatusOr<StreamChannels> ChannelsOfStream(const std::string& stream) {
+  VD_RETURN_IF_ERROR(ValidateStreamName(stream));
+  StreamChannels channels;
+  if (stream.empty()) return channels;
+  const std::string prefix = "VDEFORM_" + stream + "_";
+  channels.frames = prefix + "FRAMES";
+  channels.mesh = prefix + "MESH";
+  channels.status = prefix + "STATUS";
+  channels.control = prefix + "CONTROL";
+  return channels;
+}
+
+std::optional<std::string> StreamOfChannel(const std::string& channel, const std::string& suffix) {
+  const std::string prefix = "VDEFORM_";
+  if (channel == prefix + suffix) return std::string();
+  const std::string tail = "_" + suffix;
+  if (channel.size() <= prefix.size() + tail.size() || channel.compare(0, prefix.size(), prefix) != 0 ||
+      channel.compare(channel.size() - tail.size(), tail.size(), tail) != 0)
+    return std::nullopt;
+  std::string stream = channel.substr(prefix.size(), channel.size() - prefix.size() - tail.size());
+  if (!ValidateStreamName(stream).ok()) return std::nullopt;
+  return stream;
+}
+
+std::string AllStreamsChannelRegex(const std::string& suffix) { return "VDEFORM_([A-Za-z0-9_-]+_)?" + suffix; }
+
 namespace {
 
 // Longer source ids are not names a capture client would choose; the bound keeps logs sane.

@@ -42,6 +42,7 @@ class Node::Impl {
  public:
   Impl(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate)
       : options_(options),
+        channels_(*ChannelsOfStream(options.stream)),
         lcm_(lcm),
         engine_(std::move(engine)),
         gate_(std::move(gate)),
@@ -314,7 +315,7 @@ class Node::Impl {
       st.resident_memory_bytes = ResidentBytes();
       last_status_ = Clock::now();
     }
-    lcm_->publish(kStatusChannel, &st);
+    lcm_->publish(channels_.status, &st);
   }
 
  private:
@@ -327,7 +328,12 @@ class Node::Impl {
 
   // Encodes the meshes of `result` for publishing; called with mutex_ held.
   void KeepMeshes(const FrameResult& result, int64_t seq) {
-    auto live = MeshToMessage(result.live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE);
+    // Every live mesh carries its vertices' canonical positions (same vertices, same order), so
+    // viewers colour by canonical position on every frame, not only when a canonical mesh came.
+    TriangleMesh live_mesh = result.live_mesh;
+    if (result.canonical_mesh.positions.size() == live_mesh.positions.size())
+      live_mesh.canonical = result.canonical_mesh.positions;
+    auto live = MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE);
     auto canonical = MeshToMessage(result.canonical_mesh, NowUs(), seq, vdeform::mesh_t::KIND_CANONICAL);
     if (live.ok()) last_live_ = std::move(live).value();
     else VD_LOG_WARNING << "cannot encode live mesh: " << live.status().ToString();
@@ -384,10 +390,10 @@ class Node::Impl {
   // The live mesh always; the canonical one when it changed, at most once a second, or on request.
   void PublishMeshes(bool force_canonical) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (last_live_) lcm_->publish(kMeshChannel, &*last_live_);
+    if (last_live_) lcm_->publish(channels_.mesh, &*last_live_);
     const auto now = Clock::now();
     if (last_canonical_ && (force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1)))) {
-      lcm_->publish(kMeshChannel, &*last_canonical_);
+      lcm_->publish(channels_.mesh, &*last_canonical_);
       last_canonical_sent_ = now;
       canonical_changed_ = false;
     }
@@ -440,6 +446,7 @@ class Node::Impl {
 
   // Borrowed from the caller, which validated them once at start-up.
   const ServerOptions& options_;
+  const StreamChannels channels_;
   // Borrowed from the caller; publishing is thread-safe in LCM.
   lcm::LCM* lcm_;
   // Run by the worker; the receive thread only calls Prefetch, which is made to run beside Process.
@@ -546,7 +553,8 @@ int RunNode(const ServerOptions& options) {
     std::fprintf(stderr, "vdeform-server: %s\n", engine.status().ToString().c_str());
     return 1;
   }
-  VD_LOG_INFO << "vdeform-server on " << (*engine)->DeviceDescription() << ", LCM " << url;
+  VD_LOG_INFO << "vdeform-server on " << (*engine)->DeviceDescription() << ", LCM " << url
+              << (options.stream.empty() ? "" : ", stream " + options.stream);
   if (!gate->control_key.empty()) VD_LOG_INFO << "control commands RESET and SAVE_SNAPSHOT need an HMAC";
   if (!gate->frame_keys.empty())
     VD_LOG_INFO << "frames must be signed (" << gate->frame_keys.size()
@@ -555,8 +563,9 @@ int RunNode(const ServerOptions& options) {
   Node node(options, &lcm, std::move(engine).value(), std::move(gate).value());
   // A refused checkpoint is reported (log and status) and the server starts a new model.
   if (options.resume) node.Resume();
-  lcm.subscribe(kFrameChannel, &Node::OnFrame, &node);
-  lcm.subscribe(kControlChannel, &Node::OnControl, &node);
+  const StreamChannels channels = *ChannelsOfStream(options.stream);
+  lcm.subscribe(channels.frames, &Node::OnFrame, &node);
+  lcm.subscribe(channels.control, &Node::OnControl, &node);
   const Status served = node.Serve(&g_stop);
   node.PrintSummary();
   if (!served.ok()) {

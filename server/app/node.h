@@ -25,7 +25,7 @@ class Node {
   Node(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate = {});
   ~Node();
 
-  // LCM handlers (subscribe them to kFrameChannel and kControlChannel).
+  // LCM handlers (subscribe them to the stream's frame and control channels).
   void OnFrame(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
   void OnControl(const lcm::ReceiveBuffer* rbuf, const std::string& channel);
 

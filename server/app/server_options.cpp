@@ -27,6 +27,10 @@ void ServerOptions::Register(FlagParser* f) {
   f->Section("LCM node");
   f->Add("lcm-url", &lcm_url, "LCM URL (default: $LCM_DEFAULT_URL, else host-only multicast with a 4 MB receive buffer)",
          "URL");
+  f->Add("stream", &stream,
+         "Stream name, for several capture+server pairs on one LCM URL: frames on VDEFORM_<NAME>_FRAMES, meshes, "
+         "status and control on VDEFORM_<NAME>_MESH, _STATUS, _CONTROL (empty = VDEFORM_FRAMES, ...)",
+         "NAME");
   f->Add("snapshot-dir", &snapshot_dir, "Directory SAVE_SNAPSHOT commands write into (paths cannot leave it)", "DIR");
   f->Add("checkpoint", &checkpoint_dir,
          "Directory for checkpoints of the model (volume, deformation field, feature history), written "
@@ -55,6 +59,7 @@ void ServerOptions::Register(FlagParser* f) {
 
 Status ServerOptions::Validate() const {
   VD_RETURN_IF_ERROR(engine.Validate());
+  VD_RETURN_IF_ERROR(ValidateStreamName(stream).WithContext("--stream"));
   // Source options are checked by SourceOptions::Validate when the offline mode opens its source.
   if (!(checkpoint_interval >= 0.0))
     return ParamOutOfBounds("ServerOptions", "checkpoint_interval", checkpoint_interval, ">= 0 s (--checkpoint-interval)");

@@ -26,6 +26,8 @@ struct ServerOptions {
   bool list_devices = false;
   // LCM node.
   std::string lcm_url;
+  // Stream name (--stream): channels VDEFORM_<NAME>_FRAMES, _MESH, _STATUS, _CONTROL; empty: today's.
+  std::string stream;
   std::string snapshot_dir = "snapshots";
   // Checkpoints (empty = none): written every checkpoint_interval seconds while the model changes,
   // on SAVE_SNAPSHOT and at shutdown; --resume continues from the newest valid one.

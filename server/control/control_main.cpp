@@ -82,7 +82,7 @@ void PrintStatus(const vdeform::server_status_t& st) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string command, path, key_file, lcm_url, sender;
+  std::string command, path, key_file, lcm_url, sender, stream;
   double wait = 3.0;
   vd::FlagParser flags(
       "vdeform-control: send a control command to a running vdeform-server.\n"
@@ -95,8 +95,13 @@ int main(int argc, char** argv) {
   flags.Add("key-file", &key_file, "The server's --control-key-file: signs the command with HMAC-SHA256");
   flags.Add("sender", &sender, "Who sends it, for the server's log (default vdeform-control@HOSTNAME)");
   flags.Add("lcm-url", &lcm_url, "LCM URL (default: $LCM_DEFAULT_URL, else host-only multicast)");
+  flags.Add("stream", &stream, "The server's --stream: channels VDEFORM_<NAME>_STATUS and _CONTROL (empty = "
+                               "VDEFORM_STATUS, VDEFORM_CONTROL)", "NAME");
   flags.Add("wait", &wait, "Seconds to wait for the server's status to confirm (0 = send and exit)");
-  if (auto exit_code = flags.ParseCommandLine(argc, argv, "vdeform-control")) return *exit_code;
+  if (auto exit_code = flags.ParseCommandLine(argc, argv, "vdeform-control",
+                                              [&] { return vd::ValidateStreamName(stream).WithContext("--stream"); }))
+    return *exit_code;
+  const vd::StreamChannels channels = *vd::ChannelsOfStream(stream);
   vdeform::control_t msg{};
   if (command == "reset") {
     msg.command = vdeform::control_t::COMMAND_RESET;
@@ -137,7 +142,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   StatusWatch watch;
-  lcm.subscribe(vd::kStatusChannel, &StatusWatch::OnStatus, &watch);
+  lcm.subscribe(channels.status, &StatusWatch::OnStatus, &watch);
   std::optional<vdeform::server_status_t> before;
   if (wait > 0) {
     before = WaitStatus(&lcm, &watch, wait, 0);
@@ -157,7 +162,7 @@ int main(int argc, char** argv) {
     return 0;
   }
   const int64_t sent_us = NowUs();
-  if (lcm.publish(vd::kControlChannel, &msg) != 0) {
+  if (lcm.publish(channels.control, &msg) != 0) {
     std::fprintf(stderr, "vdeform-control: publish failed\n");
     return 1;
   }

@@ -22,6 +22,7 @@ check_flags() {  # program, env file, help text
 }
 check_flags vdeform-server "$root/deploy/vdeform-server.env" "$("$build/server/vdeform-server" --help)"
 check_flags vdeform-capture "$root/deploy/vdeform-capture.env" "$("$build/capture_client/vdeform-capture" --help)"
+check_flags vdeform-web "$root/deploy/vdeform-web.env" "$("$build/viewer_client/vdeform-web" --help)"
 
 for unit in "$root"/deploy/systemd/*.service; do
   name=$(basename "$unit")

@@ -1,6 +1,13 @@
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iterator>
+#include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -213,6 +220,72 @@ TEST(DracoCodecTest, OptionsValidateNamesFieldAndBound) {
   o.speed = -1;
   EXPECT_FALSE(o.Validate().ok());
   EXPECT_FALSE(EncodeMeshDraco(Sphere(4, 6, 1.f, false), o).ok());
+}
+
+}  // namespace
+}  // namespace vd
+
+namespace vd {
+namespace {
+
+// The live mesh's canonical positions (issue 16): a GENERIC attribute quantised like the positions,
+// read back per vertex; a mesh without it decodes without it.
+TEST(DracoCodecTest, CanonicalPositionsRoundTripPerVertex) {
+  TriangleMesh live = Sphere(20, 36, 0.5f, false);
+  // Canonical = live scaled by 2 and moved: a different box, so a mix-up of the two would show.
+  for (size_t i = 0; i < live.positions.size(); ++i)
+    live.canonical.push_back(2.f * live.positions[i] + (i % 3 == 2 ? 1.f : -0.25f));
+  for (int bits : {11, 14}) {
+    DracoOptions options;
+    options.position_bits = bits;
+    auto bytes = EncodeMeshDraco(live, options);
+    ASSERT_TRUE(bytes.ok()) << bytes.status().ToString();
+    auto decoded = DecodeMeshDraco(bytes->data(), bytes->size());
+    ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+    ASSERT_EQ(decoded->canonical.size(), decoded->positions.size());
+    ExpectSameMesh(live, *decoded, bits);
+    const float bound = 2.f * QuantisationBound(live, bits);
+    float worst = 0.f;
+    for (size_t v = 0; v < decoded->num_vertices(); ++v) {
+      const uint32_t key = ColorKey(*decoded, v);
+      for (int k = 0; k < 3; ++k)
+        worst = std::max(worst, std::abs(decoded->canonical[3 * v + k] - live.canonical[3 * key + k]));
+    }
+    EXPECT_LE(worst, bound) << bits << " bits";
+    EXPECT_GT(worst, 0.f) << "the canonical positions were not quantised";
+  }
+  TriangleMesh plain = live;
+  plain.canonical.clear();
+  auto bytes = EncodeMeshDraco(plain, {});
+  ASSERT_TRUE(bytes.ok());
+  auto decoded = DecodeMeshDraco(bytes->data(), bytes->size());
+  ASSERT_TRUE(decoded.ok());
+  EXPECT_TRUE(decoded->canonical.empty());
+  TriangleMesh wrong = live;
+  wrong.canonical.resize(wrong.canonical.size() - 3);
+  EXPECT_EQ(EncodeMeshDraco(wrong, {}).status().code(), StatusCode::kInvalidArgument);
+}
+
+// Debian's draco_decoder (package draco) still decodes a live mesh with the canonical attribute.
+TEST(DracoCodecTest, DebiansDracoDecoderDecodesTheLivePayload) {
+  if (std::system("command -v draco_decoder >/dev/null 2>&1") != 0) GTEST_SKIP() << "draco_decoder not installed";
+  TriangleMesh live = Sphere(20, 36, 0.5f, false);
+  live.canonical = live.positions;
+  auto bytes = EncodeMeshDraco(live, {});
+  ASSERT_TRUE(bytes.ok());
+  const std::string stem = ::testing::TempDir() + "/vd_canonical_" + std::to_string(getpid());
+  {
+    std::ofstream out(stem + ".drc", std::ios::binary);
+    out.write(reinterpret_cast<const char*>(bytes->data()), static_cast<std::streamsize>(bytes->size()));
+  }
+  const std::string command = "draco_decoder -i " + stem + ".drc -o " + stem + ".ply >/dev/null 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0) << command;
+  std::ifstream ply(stem + ".ply", std::ios::binary);
+  std::string header((std::istreambuf_iterator<char>(ply)), std::istreambuf_iterator<char>());
+  header = header.substr(0, std::min<size_t>(header.size(), 400));
+  EXPECT_NE(header.find("element vertex " + std::to_string(live.num_vertices())), std::string::npos) << header;
+  std::remove((stem + ".drc").c_str());
+  std::remove((stem + ".ply").c_str());
 }
 
 }  // namespace

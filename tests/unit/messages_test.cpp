@@ -273,3 +273,41 @@ TEST(MessagesTest, FrameEncodeOptionsValidateNamesFieldAndBound) {
 
 }  // namespace
 }  // namespace vd
+
+namespace vd {
+namespace {
+
+TEST(StreamChannelsTest, NamedStreamsGetTheirOwnChannelsAndTheUnnamedOneTodaysNames) {
+  StatusOr<StreamChannels> unnamed = ChannelsOfStream("");
+  ASSERT_TRUE(unnamed.ok());
+  EXPECT_EQ(unnamed->frames, "VDEFORM_FRAMES");
+  EXPECT_EQ(unnamed->mesh, "VDEFORM_MESH");
+  EXPECT_EQ(unnamed->status, "VDEFORM_STATUS");
+  EXPECT_EQ(unnamed->control, "VDEFORM_CONTROL");
+  StatusOr<StreamChannels> named = ChannelsOfStream("cam_2-left");
+  ASSERT_TRUE(named.ok());
+  EXPECT_EQ(named->frames, "VDEFORM_cam_2-left_FRAMES");
+  EXPECT_EQ(named->mesh, "VDEFORM_cam_2-left_MESH");
+  EXPECT_EQ(named->status, "VDEFORM_cam_2-left_STATUS");
+  EXPECT_EQ(named->control, "VDEFORM_cam_2-left_CONTROL");
+  for (const char* bad : {"a b", "a/b", "a.b", ".*", "A$"})
+    EXPECT_EQ(ChannelsOfStream(bad).status().code(), StatusCode::kInvalidArgument) << bad;
+  EXPECT_FALSE(ChannelsOfStream(std::string(65, 'x')).ok());
+  EXPECT_TRUE(ChannelsOfStream(std::string(64, 'x')).ok());
+}
+
+TEST(StreamChannelsTest, TheStreamOfAChannelIsReadBack) {
+  EXPECT_EQ(StreamOfChannel("VDEFORM_MESH", "MESH").value_or("?"), "");
+  EXPECT_EQ(StreamOfChannel("VDEFORM_CAM_1_MESH", "MESH").value_or("?"), "CAM_1");
+  EXPECT_EQ(StreamOfChannel("VDEFORM_MESH_MESH", "MESH").value_or("?"), "MESH");
+  EXPECT_FALSE(StreamOfChannel("VDEFORM_CAM_1_STATUS", "MESH").has_value());
+  EXPECT_FALSE(StreamOfChannel("OTHER_MESH", "MESH").has_value());
+  EXPECT_FALSE(StreamOfChannel("VDEFORM__MESH", "MESH").has_value());
+  EXPECT_FALSE(StreamOfChannel("VDEFORM_a b_MESH", "MESH").has_value());
+  for (const char* name : {"", "A", "cam_2-left"})
+    EXPECT_EQ(StreamOfChannel(ChannelsOfStream(name)->status, "STATUS").value_or("?"), name);
+  EXPECT_EQ(AllStreamsChannelRegex("MESH"), "VDEFORM_([A-Za-z0-9_-]+_)?MESH");
+}
+
+}  // namespace
+}  // namespace vd

@@ -249,6 +249,22 @@ TEST(CanonicalColorsTest, SameCanonicalPointSameColourWhereverItMovedLive) {
   EXPECT_LE(cv::norm(left, right, cv::NORM_INF), 2.0);
 }
 
+TEST(CanonicalColorsTest, ALiveMeshCarryingItsCanonicalPositionsNeedsNoCanonicalMesh) {
+  TriangleMesh live;
+  AddQuad(&live, 0, 0, 1, 1, 1, 10, 20, 30);
+  TriangleMesh canonical = live;
+  canonical.positions[0] = -5.f;
+  live.canonical = canonical.positions;
+  // No canonical mesh at all, or another frame's: the carried positions are used, as a canonical
+  // mesh of the same frame would be.
+  const VertexColors own = SelectVertexColors(live, 8, nullptr, -1, ColorMode::kCanonical);
+  EXPECT_EQ(own.used, ColorMode::kCanonical);
+  EXPECT_EQ(own.rgb, CanonicalColors(canonical));
+  EXPECT_EQ(SelectVertexColors(live, 8, &live, 7, ColorMode::kCanonical).rgb, CanonicalColors(canonical));
+  // Other modes ignore them.
+  EXPECT_EQ(SelectVertexColors(live, 8, nullptr, -1, ColorMode::kVertex).rgb, live.colors);
+}
+
 TEST(CanonicalColorsTest, FallsBackWithoutAMatchingCanonicalMesh) {
   TriangleMesh live;
   AddQuad(&live, 0, 0, 1, 1, 1, 10, 20, 30);

@@ -1,11 +1,9 @@
 // vdeform-viewer: subscribes to the server's meshes and status, shows them in a window or as a
 // terminal status line, and saves PLY files and PNG renderings. See --help.
-#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <chrono>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -16,6 +14,7 @@
 
 #include "vd/common/log.h"
 #include "vd/common/messages.h"
+#include "vd/common/stop_signal.h"
 #include "vd/viewer/display.h"
 #include "vd/viewer/receiver.h"
 #include "vd/viewer/status_text.h"
@@ -23,60 +22,6 @@
 #include "window.h"
 
 namespace {
-
-std::atomic<bool> g_stop{false};
-
-void OnSignal(int) { g_stop.store(true); }
-
-void InstallSignalHandlers() {
-  struct sigaction action {};
-  action.sa_handler = OnSignal;
-  sigemptyset(&action.sa_mask);
-  sigaction(SIGINT, &action, nullptr);
-  sigaction(SIGTERM, &action, nullptr);
-}
-
-// Columns of the terminal on stdout (80 when unknown), so the \r-refreshed line never wraps.
-size_t TerminalColumns() {
-  winsize size{};
-  if (ioctl(STDOUT_FILENO, TIOCGWINSZ, &size) == 0 && size.ws_col > 0) return size.ws_col;
-  return 80;
-}
-
-// The status line: refreshed in place four times a second on a terminal, one line a second
-// otherwise (logs, pipes).
-class StatusPrinter {
- public:
-  explicit StatusPrinter(bool enabled) : enabled_(enabled), tty_(isatty(STDOUT_FILENO) != 0) {}
-  void Tick(const vd::MeshReceiver& receiver) {
-    if (!enabled_) return;
-    const auto now = std::chrono::steady_clock::now();
-    const auto period = tty_ ? std::chrono::milliseconds(250) : std::chrono::milliseconds(1000);
-    if (now - last_ < period) return;
-    last_ = now;
-    std::string line = vd::StatusLine(receiver.stats(), receiver.last_status());
-    if (tty_) {
-      const size_t columns = TerminalColumns();
-      if (line.size() >= columns) line.resize(columns - 1);
-      std::printf("\r%s\033[K", line.c_str());
-      printed_on_line_ = true;
-    } else {
-      std::printf("%s\n", line.c_str());
-    }
-    std::fflush(stdout);
-  }
-  // Ends the in-place line so what follows starts on a fresh one.
-  void Finish() {
-    if (printed_on_line_) std::printf("\n");
-    printed_on_line_ = false;
-  }
-
- private:
-  bool enabled_;
-  bool tty_;
-  bool printed_on_line_ = false;
-  std::chrono::steady_clock::time_point last_{};
-};
 
 int Main(int argc, char** argv) {
   std::vector<std::string> args(argv + 1, argv + argc);
@@ -91,7 +36,8 @@ int Main(int argc, char** argv) {
     return 0;
   }
   if (options.quiet) vd::SetLogLevel(vd::LogLevel::kWarning);
-  InstallSignalHandlers();
+  vd::InstallStopSignalHandlers();
+  std::atomic<bool>& g_stop = vd::StopFlag();
 
   bool windowed = !options.headless;
   if (windowed) {
@@ -118,6 +64,7 @@ int Main(int argc, char** argv) {
   receiver_options.color_mode = options.color_mode;
   receiver_options.request_mesh = !options.no_request;
   receiver_options.sender = "vdeform-viewer:" + std::to_string(getpid());
+  receiver_options.channels = *vd::ChannelsOfStream(options.stream);
   // Saving every mesh matters more than latency: ride out ~8 s of a 30 Hz server at 2x our pace.
   if (!options.save_dir.empty()) receiver_options.mesh_queue_capacity = 240;
   vd::StatusOr<std::unique_ptr<vd::MeshReceiver>> created = vd::MeshReceiver::Create(&lcm, receiver_options);
@@ -126,14 +73,15 @@ int Main(int argc, char** argv) {
     return 1;
   }
   vd::MeshReceiver& receiver = **created;
-  VD_LOG_INFO << "listening on " << url << " (" << vd::kMeshChannel << ", " << vd::kStatusChannel << ")"
+  VD_LOG_INFO << "listening on " << url << " (" << receiver_options.channels.mesh << ", "
+              << receiver_options.channels.status << ")"
               << (receiver.stats().requests_sent > 0 ? "; asked the server for its current meshes" : "")
               << (options.save_dir.empty() ? "" : "; saving to " + options.save_dir);
 
   vd::RunOptions run;
   run.count = options.count;
   run.timeout_s = options.timeout_s;
-  StatusPrinter printer(!options.quiet && !windowed);
+  vd::StatusPrinter printer(!options.quiet && !windowed);
   std::unique_ptr<vd::MeshWindow> window;
   if (windowed) {
     vd::StatusOr<std::unique_ptr<vd::MeshWindow>> opened =
@@ -142,7 +90,7 @@ int Main(int argc, char** argv) {
       window = std::move(opened).value();
     } else {
       VD_LOG_WARNING << opened.status().ToString() << ": running headless";
-      printer = StatusPrinter(!options.quiet);
+      printer = vd::StatusPrinter(!options.quiet);
     }
   }
   std::function<void()> tick;
@@ -153,7 +101,7 @@ int Main(int argc, char** argv) {
       if (!window->Update(receiver, 10)) g_stop.store(true);
     };
   } else {
-    tick = [&] { printer.Tick(receiver); };
+    tick = [&] { printer.Tick([&] { return vd::StatusLine(receiver.stats(), receiver.last_status()); }); };
   }
 
   vd::Status ran = receiver.Run(run, &g_stop, tick);

@@ -47,10 +47,11 @@ StatusOr<std::unique_ptr<MeshReceiver>> MeshReceiver::Create(lcm::LCM* lcm, cons
       return Unavailable("cannot create the save directory '" + options.save_dir + "': " + ec.message());
   }
   std::unique_ptr<MeshReceiver> receiver(new MeshReceiver(lcm, options));
-  receiver->mesh_subscription_ = lcm->subscribe(kMeshChannel, &MeshReceiver::OnMesh, receiver.get());
-  receiver->status_subscription_ = lcm->subscribe(kStatusChannel, &MeshReceiver::OnStatus, receiver.get());
+  const StreamChannels& channels = options.channels;
+  receiver->mesh_subscription_ = lcm->subscribe(channels.mesh, &MeshReceiver::OnMesh, receiver.get());
+  receiver->status_subscription_ = lcm->subscribe(channels.status, &MeshReceiver::OnStatus, receiver.get());
   if (!receiver->mesh_subscription_ || !receiver->status_subscription_)
-    return Unavailable(std::string("cannot subscribe to ") + kMeshChannel + " and " + kStatusChannel);
+    return Unavailable("cannot subscribe to " + channels.mesh + " and " + channels.status);
   if (options.mesh_queue_capacity > 0 && receiver->mesh_subscription_->setQueueCapacity(options.mesh_queue_capacity) != 0)
     return Unavailable("cannot set the mesh queue capacity to " + std::to_string(options.mesh_queue_capacity));
   // A provider that cannot publish (a file:// log opened for replay) still delivers meshes.
@@ -77,8 +78,8 @@ Status MeshReceiver::RequestMesh() {
   msg.command = vdeform::control_t::COMMAND_REQUEST_MESH;
   msg.sender = options_.sender;
   msg.auth_size = 0;
-  if (lcm_->publish(kControlChannel, &msg) != 0)
-    return Unavailable(std::string("cannot publish REQUEST_MESH on ") + kControlChannel);
+  if (lcm_->publish(options_.channels.control, &msg) != 0)
+    return Unavailable("cannot publish REQUEST_MESH on " + options_.channels.control);
   ++stats_.requests_sent;
   return Status::Ok();
 }
@@ -106,8 +107,8 @@ Status MeshReceiver::Run(const RunOptions& options, const std::atomic<bool>* sto
       if (now >= deadline) {
         char text[64];
         std::snprintf(text, sizeof text, "%g", options.timeout_s);
-        return DeadlineExceeded(std::string("no mesh or status message arrived for ") + text + " s on " + kMeshChannel +
-                                " / " + kStatusChannel + "; is vdeform-server running on the same LCM URL?");
+        return DeadlineExceeded(std::string("no mesh or status message arrived for ") + text + " s on " + options_.channels.mesh +
+                                " / " + options_.channels.status + "; is vdeform-server running on the same LCM URL?");
       }
       const auto left_ms = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - now).count() + 1;
       wait_ms = static_cast<int>(std::min<int64_t>(wait_ms, left_ms));

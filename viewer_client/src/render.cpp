@@ -243,6 +243,13 @@ std::vector<uint8_t> CanonicalColors(const TriangleMesh& canonical) {
 VertexColors SelectVertexColors(const TriangleMesh& live, int64_t live_seq, const TriangleMesh* canonical,
                                 int64_t canonical_seq, ColorMode mode) {
   VertexColors out;
+  if (mode == ColorMode::kCanonical && !live.canonical.empty() && live.canonical.size() == live.positions.size()) {
+    TriangleMesh own;
+    own.positions = live.canonical;
+    out.rgb = CanonicalColors(own);
+    out.used = ColorMode::kCanonical;
+    return out;
+  }
   if (mode == ColorMode::kCanonical && canonical != nullptr && canonical_seq == live_seq &&
       canonical->num_vertices() == live.num_vertices()) {
     out.rgb = CanonicalColors(*canonical);

@@ -1,5 +1,8 @@
 #include "vd/viewer/status_text.h"
 
+#include <sys/ioctl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <sstream>
@@ -164,6 +167,42 @@ std::string SummaryText(const ReceiverStats& stats, const std::optional<vdeform:
     os << "    " << written_paths[i] << "\n";
   }
   return os.str();
+}
+
+namespace {
+
+// Columns of the terminal on stdout (80 when unknown), so the \r-refreshed line never wraps.
+size_t TerminalColumns() {
+  winsize size{};
+  if (ioctl(STDOUT_FILENO, TIOCGWINSZ, &size) == 0 && size.ws_col > 0) return size.ws_col;
+  return 80;
+}
+
+}  // namespace
+
+StatusPrinter::StatusPrinter(bool enabled) : enabled_(enabled), tty_(isatty(STDOUT_FILENO) != 0) {}
+
+void StatusPrinter::Tick(const std::function<std::string()>& line_of) {
+  if (!enabled_) return;
+  const auto now = std::chrono::steady_clock::now();
+  const auto period = tty_ ? std::chrono::milliseconds(250) : std::chrono::milliseconds(1000);
+  if (now - last_ < period) return;
+  last_ = now;
+  std::string line = line_of();
+  if (tty_) {
+    const size_t columns = TerminalColumns();
+    if (line.size() >= columns) line.resize(columns - 1);
+    std::printf("\r%s\033[K", line.c_str());
+    printed_on_line_ = true;
+  } else {
+    std::printf("%s\n", line.c_str());
+  }
+  std::fflush(stdout);
+}
+
+void StatusPrinter::Finish() {
+  if (printed_on_line_) std::printf("\n");
+  printed_on_line_ = false;
 }
 
 }  // namespace vd

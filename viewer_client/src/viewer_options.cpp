@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "vd/common/flags.h"
+#include "vd/common/messages.h"
 
 namespace vd {
 namespace {
@@ -29,6 +30,14 @@ void Bind(FlagParser* f, ViewerOptions* o) {
          "udpm://239.255.76.67:7667?ttl=0&recv_buf_size=4194304. A recorded log replays with "
          "file:///path/log.lcm?speed=0 (the end of the log ends the run, exit 0 unless --count was not reached).",
          "URL");
+  f->AddCustom("stream", "NAME", "",
+               "Show the stream NAME: channels VDEFORM_<NAME>_MESH, _STATUS and _CONTROL (several servers on one LCM "
+               "URL). Default: the unnamed stream (VDEFORM_MESH, ...).",
+               [o](const std::string& v) {
+                 VD_RETURN_IF_ERROR(ValidateStreamName(v).WithContext("--stream"));
+                 o->stream = v;
+                 return Status::Ok();
+               });
   f->AddSwitch("headless", &o->headless, "Never open a window; print the status line instead.");
   f->AddCustom("save-dir", "DIR", "",
                "Write each received mesh as DIR/frame-%06d.mesh.ply (LIVE, the frame's seq) and "

@@ -12,6 +12,7 @@
 #include <vdeform/rgbd_frame_t.hpp>
 #include <vdeform/server_status_t.hpp>
 
+#include "vd/common/messages.h"
 #include "vd/common/status.h"
 
 namespace vd {
@@ -29,6 +30,8 @@ struct PacingOptions {
   int lockstep_retries = 3;
   // Our source id; only status messages naming it acknowledge our frames.
   std::string source_id;
+  // Where frames go and acknowledgements come from (--stream NAME; today's names by default).
+  StreamChannels channels;
   Status Validate() const;
 };
 
@@ -55,7 +58,7 @@ class FramePacer {
   FramePacer(const FramePacer&) = delete;
   FramePacer& operator=(const FramePacer&) = delete;
 
-  // Waits for the frame's slot in the schedule, publishes it on kFrameChannel and, in lockstep
+  // Waits for the frame's slot in the schedule, publishes it on the frame channel and, in lockstep
   // mode, waits until the server acknowledged msg.seq, re-sending after each time-out. Returns
   // DeadlineExceeded after lockstep_retries unacknowledged re-sends, Unavailable when publishing
   // fails. Returns Ok early, with the frame possibly unacknowledged, when *stop becomes true.

@@ -46,6 +46,10 @@ Status VerifyFrame(const std::string& key, const vdeform::rgbd_frame_t& msg);
 // A random non-zero epoch for rgbd_frame_t.epoch (OpenSSL's CSPRNG): one per capture process.
 int64_t RandomEpoch();
 
+// The bytes of a secret file (a key, a web token): refuses a missing or non-regular file and one
+// readable by group or others; `what` names it in the errors ("control key file").
+StatusOr<std::string> ReadPrivateFile(const std::string& path, const std::string& what);
+
 // Reads a key file: its bytes with trailing whitespace removed; refuses missing, short, and
 // group- or world-readable files (a key others can read authenticates nothing).
 StatusOr<std::string> ReadControlKey(const std::string& path);

@@ -46,6 +46,9 @@ struct DracoOptions {
 // Largest coordinate magnitude and extent EncodeMeshDraco accepts (far beyond any scene in metres,
 // far enough below FLT_MAX that quantisation cannot overflow).
 inline constexpr float kMaxDracoCoordinate = 1e30f;
+// Unique id of the GENERIC attribute carrying TriangleMesh::canonical (x, y, z, quantised like the
+// positions); a decoder that does not know it ignores it (Debian's draco_decoder does).
+inline constexpr uint32_t kDracoCanonicalId = 3;
 StatusOr<std::vector<uint8_t>> EncodeMeshDraco(const TriangleMesh& mesh, const DracoOptions& options = {});
 StatusOr<TriangleMesh> DecodeMeshDraco(const uint8_t* data, size_t size);
 

@@ -14,6 +14,9 @@ struct TriangleMesh {
   std::vector<uint8_t> colors;
   // nx, ny, nz per vertex; empty or 3 per vertex.
   std::vector<float> normals;
+  // x, y, z per vertex of the same surface point in the canonical pose (a live mesh's colouring by
+  // canonical position, VolumeDeform Fig. 8); empty or 3 per vertex.
+  std::vector<float> canonical;
   // Three vertex indices per triangle, counter-clockwise seen from outside.
   std::vector<int32_t> triangles;
 

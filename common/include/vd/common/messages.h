@@ -2,7 +2,9 @@
 // Conversion between in-memory types and the vdeform LCM messages, channel names, LCM URL.
 #include <cstdint>
 #include <exception>
+#include <optional>
 #include <string>
+#include <string_view>
 
 #include <vdeform/control_t.hpp>
 #include <vdeform/mesh_t.hpp>
@@ -21,6 +23,24 @@ inline constexpr const char* kFrameChannel = "VDEFORM_FRAMES";
 inline constexpr const char* kMeshChannel = "VDEFORM_MESH";
 inline constexpr const char* kStatusChannel = "VDEFORM_STATUS";
 inline constexpr const char* kControlChannel = "VDEFORM_CONTROL";
+
+// The four channels of one stream. Several sensors and servers share one LCM URL by naming their
+// streams (--stream NAME on every program): VDEFORM_<NAME>_FRAMES, _MESH, _STATUS and _CONTROL.
+// The unnamed stream ("", the default) keeps the names above.
+struct StreamChannels {
+  std::string frames = kFrameChannel;
+  std::string mesh = kMeshChannel;
+  std::string status = kStatusChannel;
+  std::string control = kControlChannel;
+};
+// Stream names: at most 64 of A-Z a-z 0-9 _ - (they become part of channel names); "" = unnamed.
+Status ValidateStreamName(std::string_view name);
+StatusOr<StreamChannels> ChannelsOfStream(const std::string& stream);
+// The stream a channel of kind `suffix` ("MESH", "STATUS", ...) belongs to: "VDEFORM_MESH" -> "",
+// "VDEFORM_CAM_1_MESH" -> "CAM_1"; nullopt for any other channel (or an invalid name).
+std::optional<std::string> StreamOfChannel(const std::string& channel, const std::string& suffix);
+// LCM's regular expression for the channels of that kind of every stream.
+std::string AllStreamsChannelRegex(const std::string& suffix);
 
 // Largest payload accepted in one message; LCM delivery breaks above ~8 MB (STACK.md).
 inline constexpr int64_t kMaxPayloadBytes = 6 * 1024 * 1024;

@@ -18,6 +18,7 @@
 #include <vdeform/server_status_t.hpp>
 
 #include "vd/common/mesh.h"
+#include "vd/common/messages.h"
 #include "vd/common/status.h"
 #include "vd/viewer/render.h"
 
@@ -36,6 +37,8 @@ struct ReceiverOptions {
   // Publish COMMAND_REQUEST_MESH on creation (and once more when the server first shows up),
   // so a viewer that joins late does not wait for the next processed frame.
   bool request_mesh = true;
+  // The stream's channels (--stream NAME; today's names by default).
+  StreamChannels channels;
   // control_t.sender, so the server's log says who asked.
   std::string sender = "vdeform-viewer";
   // Mesh messages LCM keeps queued while we render or write (its own default is 30; beyond the
@@ -99,7 +102,7 @@ class MeshReceiver {
   MeshReceiver(const MeshReceiver&) = delete;
   MeshReceiver& operator=(const MeshReceiver&) = delete;
 
-  // Publishes control_t COMMAND_REQUEST_MESH on kControlChannel.
+  // Publishes control_t COMMAND_REQUEST_MESH on the stream's control channel.
   Status RequestMesh();
   // Dispatches what arrives within timeout_ms (0: only what is already queued).
   Status Poll(int timeout_ms);

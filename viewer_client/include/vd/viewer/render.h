@@ -84,9 +84,11 @@ struct VertexColors {
   ColorMode used = ColorMode::kVertex;
 };
 
-// Picks the colours for `live` (frame live_seq) in `mode`. canonical / canonical_seq: the latest
-// canonical mesh (null if none); it is used only when its seq equals live_seq and its vertex
-// count equals the live mesh's, because only then do vertex i of both meshes correspond.
+// Picks the colours for `live` (frame live_seq) in `mode`. In kCanonical: the canonical positions
+// the live mesh carries itself (TriangleMesh::canonical, every frame from servers since issue 16),
+// else canonical / canonical_seq: the latest canonical mesh (null if none), used only when its seq
+// equals live_seq and its vertex count equals the live mesh's, because only then do vertex i of
+// both meshes correspond; else the vertex colours.
 VertexColors SelectVertexColors(const TriangleMesh& live, int64_t live_seq, const TriangleMesh* canonical,
                                 int64_t canonical_seq, ColorMode mode);
 

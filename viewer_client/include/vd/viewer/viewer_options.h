@@ -12,6 +12,8 @@ namespace vd {
 struct ViewerOptions {
   // LCM URL; empty: $LCM_DEFAULT_URL, else vd::kDefaultLcmUrl (see ResolveLcmUrl).
   std::string lcm_url;
+  // Stream name (--stream): channels VDEFORM_<NAME>_MESH ...; empty: today's names.
+  std::string stream;
   // No window even when a display is available: a terminal status line instead.
   bool headless = false;
   // Where received meshes (and PNGs) go; empty: nothing is saved.
