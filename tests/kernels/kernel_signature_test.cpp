@@ -83,11 +83,8 @@ TEST(KernelSignatureTest, LaneWidthFromTheEnvironmentIsCheckedAndUsed) {
   VD_REQUIRE_OCL(ctx);
   EXPECT_TRUE(ctx->lanes() == 1 || ctx->lanes() == 4 || ctx->lanes() == 8 || ctx->lanes() == 16) << ctx->lanes();
   if (ctx->device().is_cpu) EXPECT_GT(ctx->lanes(), 1) << "a CPU device runs the laned kernels as SIMD";
-  setenv("VD_LANES", "3", 1);
-  auto bad = Context::Create(ctx->device().device_name);
-  setenv("VD_LANES", "8", 1);
-  auto eight = Context::Create(ctx->device().device_name);
-  unsetenv("VD_LANES");
+  auto bad = test::ContextWithLanes(*ctx, "3");
+  auto eight = test::ContextWithLanes(*ctx, "8");
   ASSERT_FALSE(bad.ok());
   EXPECT_NE(bad.status().message().find("VD_LANES='3': expected 1, 4, 8 or 16"), std::string::npos)
       << bad.status().ToString();

@@ -93,9 +93,7 @@ TEST(PreprocessParityTest, BilateralIsTheSameAtEveryLaneWidth) {
   for (int i = 0; i < n; ++i) smoothed += ref[i] > 0.f && ref[i] != depth[i];
   EXPECT_GT(smoothed, n / 10);
   for (const char* lanes : {"1", "4"}) {
-    setenv("VD_LANES", lanes, 1);
-    auto other = ocl::Context::Create(ctx->device().device_name);
-    unsetenv("VD_LANES");
+    auto other = test::ContextWithLanes(*ctx, lanes);
     ASSERT_TRUE(other.ok()) << other.status().ToString();
     const std::vector<float> out = run(other->get());
     EXPECT_TRUE(test::AllClose(out, native, 1e-6f, 1e-6f)) << "lanes " << lanes;

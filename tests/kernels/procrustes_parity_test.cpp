@@ -170,9 +170,7 @@ TEST(ProcrustesParityTest, RefinedKernelIsTheSameAtEveryLaneWidth) {
   const double off = WorstQuatDiff(native.ocl, native.cpu, &worst_k);
   EXPECT_LE(off, 1e-6) << "at k = " << worst_k;
   for (const char* lanes : {"1", "4"}) {
-    setenv("VD_LANES", lanes, 1);
-    auto other = ocl::Context::Create(ctx->device().device_name);
-    unsetenv("VD_LANES");
+    auto other = test::ContextWithLanes(*ctx, lanes);
     ASSERT_TRUE(other.ok()) << other.status().ToString();
     ASSERT_EQ((*other)->lanes(), std::atoi(lanes));
     const BothRuns r = RunBoth(other->get(), s, warm, 2);

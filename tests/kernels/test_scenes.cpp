@@ -6,6 +6,13 @@
 
 namespace vd::test {
 
+StatusOr<std::unique_ptr<ocl::Context>> ContextWithLanes(const ocl::Context& like, const char* lanes) {
+  setenv("VD_LANES", lanes, 1);
+  auto ctx = ocl::Context::Create(like.device().device_name);
+  unsetenv("VD_LANES");
+  return ctx;
+}
+
 ocl::Context* SharedContext(std::string* error) {
   static std::string failure;
   static std::unique_ptr<ocl::Context> ctx = [] {

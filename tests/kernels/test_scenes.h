@@ -16,6 +16,9 @@ namespace vd::test {
 // caller skips); nullptr with the reason in *error when a device exists but setup failed (for
 // example a kernel build error: the caller fails).
 ocl::Context* SharedContext(std::string* error);
+// A new context on the same device as `like`, its laned kernels built with `lanes` ($VD_LANES
+// for the call only).
+StatusOr<std::unique_ptr<ocl::Context>> ContextWithLanes(const ocl::Context& like, const char* lanes);
 
 #define VD_REQUIRE_OCL(ctx)                                                                     \
   std::string ctx##_error;                                                                      \
