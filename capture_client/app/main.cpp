@@ -20,6 +20,7 @@
 #include "vd/common/codecs.h"
 #include "vd/common/flags.h"
 #include "vd/common/log.h"
+#include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
 #include "vd/common/stop_signal.h"
 
@@ -215,6 +216,8 @@ int Run(const Args& a) {
     std::fprintf(stderr, "vdeform-capture: error: %s\n", pacer.status().ToString().c_str());
     return 1;
   }
+  // Only --lockstep subscribes (to the status), and so has a receive socket to guard.
+  if (pacing.lockstep) GuardLcmOrWarn(url, "vdeform-capture");
   VD_LOG_INFO << "publishing on " << pacing.channels.frames << " at " << url << " as '" << a.source_id << "', "
               << (pacing.fps > 0 ? std::to_string(pacing.fps) + " fps" : std::string("max rate"))
               << (pacing.lockstep ? ", lockstep" : "") << ", depth " << DepthEncodingName(a.encode.depth)

@@ -18,6 +18,7 @@
 #include "snapshot.h"
 #include "stats.h"
 #include "vd/common/log.h"
+#include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
 
 namespace vd {
@@ -566,6 +567,7 @@ int RunNode(const ServerOptions& options) {
   const StreamChannels channels = *ChannelsOfStream(options.stream);
   lcm.subscribe(channels.frames, &Node::OnFrame, &node);
   lcm.subscribe(channels.control, &Node::OnControl, &node);
+  GuardLcmOrWarn(url, "vdeform-server");
   const Status served = node.Serve(&g_stop);
   node.PrintSummary();
   if (!served.ok()) {

@@ -13,6 +13,7 @@
 
 #include "vd/common/flags.h"
 #include "vd/common/auth.h"
+#include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
 
 namespace {
@@ -143,6 +144,7 @@ int main(int argc, char** argv) {
   }
   StatusWatch watch;
   lcm.subscribe(channels.status, &StatusWatch::OnStatus, &watch);
+  vd::GuardLcmOrWarn(url, "vdeform-control");
   std::optional<vdeform::server_status_t> before;
   if (wait > 0) {
     before = WaitStatus(&lcm, &watch, wait, 0);

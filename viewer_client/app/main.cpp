@@ -13,6 +13,7 @@
 #include <lcm/lcm-cpp.hpp>
 
 #include "vd/common/log.h"
+#include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
 #include "vd/common/stop_signal.h"
 #include "vd/viewer/display.h"
@@ -73,6 +74,7 @@ int Main(int argc, char** argv) {
     return 1;
   }
   vd::MeshReceiver& receiver = **created;
+  vd::GuardLcmOrWarn(url, "vdeform-viewer");
   VD_LOG_INFO << "listening on " << url << " (" << receiver_options.channels.mesh << ", "
               << receiver_options.channels.status << ")"
               << (receiver.stats().requests_sent > 0 ? "; asked the server for its current meshes" : "")

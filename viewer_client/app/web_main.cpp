@@ -18,6 +18,7 @@
 
 #include "vd/common/auth.h"
 #include "vd/common/log.h"
+#include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
 #include "vd/common/stop_signal.h"
 #include "vd/viewer/status_text.h"
@@ -236,6 +237,7 @@ int Main(int argc, char** argv) {
                  status_channels.c_str());
     return 1;
   }
+  vd::GuardLcmOrWarn(url, "vdeform-web");
   // Ask at once, so the first page to connect finds the current mesh here.
   requester.Ask(options.stream.value_or(""));
   const std::string host = options.server.bind.find(':') != std::string::npos ? "[" + options.server.bind + "]"
