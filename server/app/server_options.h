@@ -40,6 +40,9 @@ struct ServerOptions {
   std::string control_key_file;
   // Frames only when signed under their source's key in this file (one key, or SOURCE_ID KEY lines).
   std::string frame_key_file;
+  // Every mesh and status message signed under the key in this file (one line KEY), so viewers and
+  // lockstep captures given it take only what this server sent; empty = the output goes unsigned.
+  std::string output_key_file;
   // What the gate lets through: frame size, sequence jumps (bound to flags by GateParams::Bind).
   GateParams gate;
   bool quiet = false;
@@ -50,6 +53,8 @@ struct ServerOptions {
   // Reads the key files and splits accept_sources; fails on an unreadable or weak key, naming the
   // file (and the line of a frame key file).
   StatusOr<GateOptions> ToGateOptions() const;
+  // The output key's bytes (empty without --output-key-file); fails on a bad file, naming it.
+  StatusOr<std::string> OutputKey() const;
 };
 
 }  // namespace vd
