@@ -125,19 +125,21 @@ template <typename Msg>
 void CheckOutputVerify(const Msg& msg, const OutputRefusals& (OutputVerifier::*refused)() const,
                        Status (*sign)(const std::string&, Msg*)) {
   OutputVerifier verifier(kOutputKey);
-  const Status first = verifier.Check(msg);
+  const OutputCheck first = verifier.Check(msg);
   const OutputRefusals& counts = (verifier.*refused)();
   if (!first.ok()) {
-    VD_FUZZ_CHECK(first.code() == StatusCode::kPermissionDenied);
+    VD_FUZZ_CHECK(first.status.code() == StatusCode::kPermissionDenied);
     VD_FUZZ_CHECK(counts.total() == 1 && counts.replayed == 0);
+    VD_FUZZ_CHECK((first.verdict == OutputVerdict::kUnsigned) == (msg.auth_size == 0));
     VD_FUZZ_CHECK((counts.unsigned_messages == 1) == (msg.auth_size == 0));
     return;
   }
+  VD_FUZZ_CHECK(first.status.ok());
   VD_FUZZ_CHECK(counts.total() == 0 && msg.auth_size == 32 && msg.auth.size() == 32);
   Msg again = msg;
   VD_FUZZ_CHECK(sign(kOutputKey, &again).ok());
   VD_FUZZ_CHECK(again.auth == msg.auth);
-  VD_FUZZ_CHECK(verifier.Check(msg).code() == StatusCode::kPermissionDenied);
+  VD_FUZZ_CHECK(verifier.Check(msg).verdict == OutputVerdict::kReplayed);
   VD_FUZZ_CHECK(counts.replayed == 1 && counts.total() == 1);
 }
 

@@ -39,17 +39,19 @@ TEST(OutputVerifierTest, TakesSignedOutputInOrderAndRefusesTheRestByReason) {
   OutputVerifier v(kKey);
   EXPECT_TRUE(v.Check(Mesh(5, 1, 1000)).ok());
   EXPECT_TRUE(v.Check(Mesh(5, 3, 1000)).ok()) << "gaps are fine (a dropped message)";
-  const Status unsigned_mesh = v.Check(Mesh(5, 4, 1000, ""));
-  EXPECT_EQ(unsigned_mesh.code(), StatusCode::kPermissionDenied);
-  EXPECT_NE(unsigned_mesh.message().find("unsigned mesh"), std::string::npos) << unsigned_mesh.message();
-  EXPECT_EQ(v.Check(Mesh(5, 4, 1000, std::string(32, '\x72'))).code(), StatusCode::kPermissionDenied);
+  const OutputCheck unsigned_mesh = v.Check(Mesh(5, 4, 1000, ""));
+  EXPECT_EQ(unsigned_mesh.verdict, OutputVerdict::kUnsigned);
+  EXPECT_EQ(unsigned_mesh.status.code(), StatusCode::kPermissionDenied);
+  EXPECT_NE(unsigned_mesh.status.message().find("unsigned mesh"), std::string::npos) << unsigned_mesh.status.message();
+  EXPECT_EQ(v.Check(Mesh(5, 4, 1000, std::string(32, '\x72'))).verdict, OutputVerdict::kBadSignature);
   vdeform::mesh_t forged = Mesh(5, 4, 1000);
   forged.seq = 99;
-  EXPECT_EQ(v.Check(forged).code(), StatusCode::kPermissionDenied) << "changed after signing";
+  EXPECT_EQ(v.Check(forged).verdict, OutputVerdict::kBadSignature) << "changed after signing";
   // A real one replayed: the same out_seq, and an older one.
-  const Status replay = v.Check(Mesh(5, 3, 1000));
-  EXPECT_EQ(replay.code(), StatusCode::kPermissionDenied);
-  EXPECT_NE(replay.message().find("out_seq 3 is not after 3"), std::string::npos) << replay.message();
+  const OutputCheck replay = v.Check(Mesh(5, 3, 1000));
+  EXPECT_EQ(replay.verdict, OutputVerdict::kReplayed);
+  EXPECT_EQ(replay.status.code(), StatusCode::kPermissionDenied);
+  EXPECT_NE(replay.status.message().find("out_seq 3 is not after 3"), std::string::npos) << replay.status.message();
   EXPECT_FALSE(v.Check(Mesh(5, 2, 1000)).ok());
   EXPECT_EQ(v.mesh_refused().unsigned_messages, 1);
   EXPECT_EQ(v.mesh_refused().bad_signature, 2);
@@ -67,9 +69,9 @@ TEST(OutputVerifierTest, ARestartIsANewEpochAndAnEarlierRunIsAReplay) {
   EXPECT_TRUE(v.Check(StatusMsg(9, 1, 2500)).ok());
   EXPECT_TRUE(v.Check(StatusMsg(9, 2, 2600)).ok());
   // The earlier run played back, even with a higher out_seq: its utime is not after the last.
-  const Status earlier = v.Check(StatusMsg(5, 41, 2100));
-  EXPECT_EQ(earlier.code(), StatusCode::kPermissionDenied);
-  EXPECT_NE(earlier.message().find("earlier server run"), std::string::npos) << earlier.message();
+  const OutputCheck earlier = v.Check(StatusMsg(5, 41, 2100));
+  EXPECT_EQ(earlier.verdict, OutputVerdict::kReplayed);
+  EXPECT_NE(earlier.status.message().find("earlier server run"), std::string::npos) << earlier.status.message();
   EXPECT_EQ(v.status_refused().replayed, 1);
   // ... and it did not become the current run: the real one goes on.
   EXPECT_TRUE(v.Check(StatusMsg(9, 3, 2700)).ok());

@@ -12,6 +12,11 @@
 
 namespace vd {
 
+// What OutputVerifier::Check decided about one message.
+enum class OutputVerdict { kTaken, kUnsigned, kBadSignature, kReplayed };
+// "taken", "unsigned", "bad signature", "replayed".
+const char* OutputVerdictName(OutputVerdict verdict);
+
 // Messages of one kind refused under the output key, by reason.
 struct OutputRefusals {
   // auth_size 0: no signature at all (a forger without the key, or a server without the key).
@@ -24,9 +29,18 @@ struct OutputRefusals {
   int64_t replayed = 0;
 
   int64_t total() const { return unsigned_messages + bad_signature + replayed; }
+  // Counts a refusal under its reason (kTaken counts nothing).
+  void Add(OutputVerdict verdict);
   OutputRefusals& operator+=(const OutputRefusals& other);
   // "2 unsigned, 1 bad signature, 0 replayed".
   std::string ToString() const;
+};
+
+struct OutputCheck {
+  OutputVerdict verdict = OutputVerdict::kTaken;
+  // Ok when taken; PermissionDenied saying why otherwise (for the receiver's log).
+  Status status;
+  bool ok() const { return verdict == OutputVerdict::kTaken; }
 };
 
 class OutputVerifier {
@@ -34,10 +48,10 @@ class OutputVerifier {
   // `key`: the output key's bytes (ReadOutputKey); it must not be empty.
   explicit OutputVerifier(std::string key);
 
-  // Ok when the message verifies and is newer than the last one of its kind taken (the new
-  // last); PermissionDenied saying why otherwise, counted in mesh_refused() / status_refused().
-  Status Check(const vdeform::mesh_t& msg);
-  Status Check(const vdeform::server_status_t& msg);
+  // Taken when the message verifies and is newer than the last one of its kind taken (it becomes
+  // the last); otherwise refused, saying why, and counted in mesh_refused() / status_refused().
+  OutputCheck Check(const vdeform::mesh_t& msg);
+  OutputCheck Check(const vdeform::server_status_t& msg);
 
   const OutputRefusals& mesh_refused() const { return mesh_.refused; }
   const OutputRefusals& status_refused() const { return status_.refused; }
@@ -53,8 +67,11 @@ class OutputVerifier {
     int64_t utime = 0;
     OutputRefusals refused;
   };
-  Status Take(const Status& verified, int32_t auth_size, int64_t epoch, int64_t out_seq, int64_t utime,
-              const char* what, Kind* kind);
+  // Decides (Decide), counts the refusal or makes the message the kind's last.
+  OutputCheck Take(const Status& verified, int32_t auth_size, int64_t epoch, int64_t out_seq, int64_t utime,
+                   const char* what, Kind* kind);
+  static OutputCheck Decide(const Status& verified, int32_t auth_size, int64_t epoch, int64_t out_seq, int64_t utime,
+                            const char* what, const Kind& kind);
 
   std::string key_;
   Kind mesh_;
