@@ -156,11 +156,9 @@ Status Finish(const FlagParser& flags, Args* args) {
                              "' (give --source-id, or add a line '" + a.source_id + " KEY')");
     a.frame_key = *key;
   }
-  if (!a.output_key_file.empty()) {
-    if (!a.lockstep)
-      return InvalidArgument("--output-key-file needs --lockstep (only lockstep reads the server's status)");
-    VD_ASSIGN_OR_RETURN(a.output_key, ReadOutputKey(a.output_key_file));
-  }
+  if (!a.output_key_file.empty() && !a.lockstep)
+    return InvalidArgument("--output-key-file needs --lockstep (only lockstep reads the server's status)");
+  VD_ASSIGN_OR_RETURN(a.output_key, OutputKeyFromFlag(a.output_key_file));
   return Status::Ok();
 }
 

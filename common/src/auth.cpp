@@ -341,4 +341,9 @@ StatusOr<std::string> ReadOutputKey(const std::string& path) {
   return ParseOutputKey(text, path);
 }
 
+StatusOr<std::string> OutputKeyFromFlag(const std::string& path) {
+  if (path.empty()) return std::string();
+  return ReadOutputKey(path);
+}
+
 }  // namespace vd

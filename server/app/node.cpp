@@ -572,7 +572,7 @@ int RunNode(const ServerOptions& options) {
     std::fprintf(stderr, "vdeform-server: %s\n", gate.status().message().c_str());
     return 2;
   }
-  auto output_key = options.OutputKey();
+  auto output_key = OutputKeyFromFlag(options.output_key_file);
   if (!output_key.ok()) {
     std::fprintf(stderr, "vdeform-server: %s\n", output_key.status().message().c_str());
     return 2;

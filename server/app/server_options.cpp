@@ -97,9 +97,4 @@ StatusOr<GateOptions> ServerOptions::ToGateOptions() const {
   return g;
 }
 
-StatusOr<std::string> ServerOptions::OutputKey() const {
-  if (output_key_file.empty()) return std::string();
-  return ReadOutputKey(output_key_file);
-}
-
 }  // namespace vd

@@ -53,8 +53,6 @@ struct ServerOptions {
   // Reads the key files and splits accept_sources; fails on an unreadable or weak key, naming the
   // file (and the line of a frame key file).
   StatusOr<GateOptions> ToGateOptions() const;
-  // The output key's bytes (empty without --output-key-file); fails on a bad file, naming it.
-  StatusOr<std::string> OutputKey() const;
 };
 
 }  // namespace vd

@@ -438,6 +438,10 @@ TEST(AuthTest, OutputKeyFilesHoldOneKey) {
   auto read = ReadOutputKey(path);
   ASSERT_TRUE(read.ok()) << read.status().ToString();
   EXPECT_EQ(uint8_t((*read)[0]), 0xff);
+  // A program's flag: the file's key, or no key without the flag.
+  EXPECT_EQ(OutputKeyFromFlag(path).value(), *read);
+  EXPECT_EQ(OutputKeyFromFlag("").value(), "");
+  EXPECT_EQ(OutputKeyFromFlag(dir + "/missing.key").status().code(), StatusCode::kNotFound);
 }
 
 }  // namespace

@@ -20,7 +20,9 @@ vdeform::mesh_t Mesh(int64_t epoch, int64_t out_seq, int64_t utime, const std::s
   m.encoding = vdeform::mesh_t::ENCODING_DRACO;
   m.epoch = epoch;
   m.out_seq = out_seq;
-  if (!key.empty()) EXPECT_TRUE(SignMesh(key, &m).ok());
+  if (!key.empty()) {
+    EXPECT_TRUE(SignMesh(key, &m).ok());
+  }
   return m;
 }
 
@@ -31,7 +33,9 @@ vdeform::server_status_t StatusMsg(int64_t epoch, int64_t out_seq, int64_t utime
   s.last_processed_seq = 3;
   s.epoch = epoch;
   s.out_seq = out_seq;
-  if (!key.empty()) EXPECT_TRUE(SignStatus(key, &s).ok());
+  if (!key.empty()) {
+    EXPECT_TRUE(SignStatus(key, &s).ok());
+  }
   return s;
 }
 

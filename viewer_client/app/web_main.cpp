@@ -236,14 +236,10 @@ int Main(int argc, char** argv) {
     VD_LOG_WARNING << "serving on " << options.server.bind
                    << " without --token-file: anyone who reaches this port sees the reconstruction";
   }
-  std::string output_key;
-  if (!options.key_file.empty()) {
-    vd::StatusOr<std::string> key = vd::ReadOutputKey(options.key_file);
-    if (!key.ok()) {
-      std::fprintf(stderr, "vdeform-web: %s\n", key.status().message().c_str());
-      return 2;
-    }
-    output_key = std::move(key).value();
+  const vd::StatusOr<std::string> output_key = vd::OutputKeyFromFlag(options.key_file);
+  if (!output_key.ok()) {
+    std::fprintf(stderr, "vdeform-web: %s\n", output_key.status().message().c_str());
+    return 2;
   }
   vd::InstallStopSignalHandlers();
   std::atomic<bool>& g_stop = vd::StopFlag();
@@ -269,7 +265,7 @@ int Main(int argc, char** argv) {
     return 1;
   }
   vd::WebServer& server = **started;
-  Forwarder forwarder(&server, &requester, output_key);
+  Forwarder forwarder(&server, &requester, *output_key);
   // One stream's channels, or every stream's (LCM subscribes by regular expression).
   const std::string mesh_channels = options.stream ? vd::ChannelsOfStream(*options.stream).value().mesh
                                                    : vd::AllStreamsChannelRegex("MESH");

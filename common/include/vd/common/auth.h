@@ -103,5 +103,7 @@ StatusOr<FrameKeys> ReadFrameKeys(const std::string& path);
 StatusOr<std::string> ParseOutputKey(const std::string& text, const std::string& path);
 // Reads and parses it, with ReadFrameKeys' checks on the file.
 StatusOr<std::string> ReadOutputKey(const std::string& path);
+// The key a program's output key flag names: ReadOutputKey(path), or no key (empty) without one.
+StatusOr<std::string> OutputKeyFromFlag(const std::string& path);
 
 }  // namespace vd
