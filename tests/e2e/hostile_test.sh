@@ -8,10 +8,10 @@
 # dangling fragments from 64 ports and complete 6.6 MB messages. Meanwhile it forges the server's
 # output: status messages naming the capture's frames as processed and meshes of made-up frames,
 # unsigned and signed under a wrong key; the server signs its output (--output-key-file), the
-# lockstep capture and a viewer (--key-file) verify it. Asserted: every real frame processed
+# lockstep capture, a viewer and vdeform-web (--key-file) verify it. Asserted: every real frame processed
 # (lockstep, exact: a forged status taken would have sent frames early, into the server's one-slot
 # mailbox); the capture reports the forged statuses it ignored; the viewer saved exactly the real
-# live meshes and counted the forged ones; no forged frame reaches the model; each counter moved by
+# live meshes and counted the forged ones, the web bridge forwarded none of them; no forged frame reaches the model; each counter moved by
 # exactly what was sent, by reason; REQUEST_MESH merged; the server's RSS grew by less than 5 %;
 # nothing written anywhere (every snapshot command was forged).
 #   hostile_test.sh BUILD_DIR
@@ -71,8 +71,12 @@ mkdir -p "$work/view"
   --lcm-url "$url" >"$work/viewer.log" 2>&1 &
 viewer=$!
 pids+=("$viewer")
-for _ in $(seq 1 50); do grep -q "listening on" "$work/viewer.log" && break; sleep 0.1; done
+"$build/viewer_client/vdeform-web" --key-file "$work/output.key" --port 0 --quiet --lcm-url "$url" >"$work/web.log" 2>&1 &
+web=$!
+pids+=("$web")
+for _ in $(seq 1 50); do grep -q "listening on" "$work/viewer.log" && grep -q "serving" "$work/web.log" && break; sleep 0.1; done
 grep -q "listening on" "$work/viewer.log" || fail "the viewer did not start"
+grep -q "serving" "$work/web.log" || fail "vdeform-web did not start"
 frames=10
 record 2 current
 sleep 0.5
@@ -96,8 +100,9 @@ status >"$work/s2"
 wait "$cap" || fail "the real capture exited with $? (lockstep gave up?)"
 sleep 1
 status >"$work/s3"
-kill -INT "$viewer"
+kill -INT "$viewer" "$web"
 wait "$viewer" || fail "viewer exited with $? after SIGINT"
+wait "$web" || fail "vdeform-web exited with $? after SIGINT"
 kill -INT "$server"
 wait "$server" || fail "server exited with $? after SIGINT"
 pids=()
@@ -177,4 +182,14 @@ read -r m_uns m_bad m_rep s_uns s_bad s_rep <<<"${refused:-x x x x x x}"
   fail "viewer refused meshes $m_uns/$m_bad/$m_rep, status $s_uns/$s_bad/$s_rep (unsigned/bad/replayed)"
 echo "viewer: saved the $frames real live meshes; refused $m_uns unsigned and $m_bad wrongly signed meshes," \
   "$s_uns and $s_bad statuses"
+# The web bridge: its last live mesh is the real last frame (a forged one is numbered 100000 and
+# up), on the one real stream, and it refused forged meshes and statuses of both kinds.
+line=$(grep "^vdeform-web: clients" "$work/web.log" | tail -1)
+echo "$line" | grep -q "| seq $((frames - 1)) (" || fail "vdeform-web's last mesh is not the real last frame: $line"
+echo "$line" | grep -q "streams)" && fail "vdeform-web heard more than the real stream: $line"
+w=$(echo "$line" | sed -n 's/.*not signed by the server: meshes \([0-9]*\) unsigned, \([0-9]*\) bad signature, \([0-9]*\) replayed; status \([0-9]*\) unsigned, \([0-9]*\) bad signature, \([0-9]*\) replayed.*/\1 \2 \3 \4 \5 \6/p')
+read -r w_uns w_bad w_rep ws_uns ws_bad ws_rep <<<"${w:-x x x x x x}"
+[ "$w_uns" != x ] && [ "$w_uns" -ge 1 ] && [ "$w_bad" -ge 1 ] && [ "$w_rep" -eq 0 ] && [ "$ws_uns" -ge 1 ] &&
+  [ "$ws_bad" -ge 1 ] && [ "$ws_rep" -eq 0 ] || fail "vdeform-web refused: $line"
+echo "vdeform-web: forwarded up to the real seq $((frames - 1)); refused $w_uns + $w_bad meshes, $ws_uns + $ws_bad statuses"
 echo "HOSTILE OK"
