@@ -2,6 +2,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <fstream>
@@ -120,9 +121,14 @@ std::optional<Sha256Digest> Mac(const std::string& key, const vdeform::mesh_t& m
 
 // The status's own LCM encoding with auth emptied: every field by construction (its ~45 fields
 // listed by hand would drift as fields are added), and small (under 1 KB), so the copy is cheap.
-// Empty when the arrays disagree with their counts (lcm-gen's encode fails); a decoded message
-// always agrees.
+// Empty when an array disagrees with its count: lcm-gen's encode would read past the vector (a
+// decoded message always agrees; one the node fills must too).
 std::optional<Sha256Digest> Mac(const std::string& key, const vdeform::server_status_t& msg) {
+  const size_t reasons = size_t(std::max(msg.num_reject_reasons, 0)), stages = size_t(std::max(msg.num_stages, 0));
+  if (msg.num_reject_reasons < 0 || msg.reject_reason.size() != reasons || msg.reject_count.size() != reasons ||
+      msg.num_stages < 0 || msg.stage_name.size() != stages || msg.stage_ms_last.size() != stages ||
+      msg.stage_ms_mean.size() != stages)
+    return std::nullopt;
   vdeform::server_status_t copy = msg;
   copy.auth_size = 0;
   copy.auth.clear();

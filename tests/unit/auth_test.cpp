@@ -377,6 +377,15 @@ TEST(AuthTest, SignedStatusVerifiesAndEveryBitIsCovered) {
     change(&t);
     EXPECT_EQ(VerifyStatus(kOutputKey, t).code(), StatusCode::kPermissionDenied) << what;
   }
+  // A status whose arrays disagree with their counts (a programmer's error; LCM's encode would read
+  // past the vector) is neither signed nor verified.
+  vdeform::server_status_t inconsistent = s;
+  inconsistent.num_stages = 3;
+  EXPECT_EQ(SignStatus(kOutputKey, &inconsistent).code(), StatusCode::kInternal);
+  EXPECT_EQ(inconsistent.auth_size, 0);
+  inconsistent = s;
+  inconsistent.reject_count.push_back(5);
+  EXPECT_EQ(VerifyStatus(kOutputKey, inconsistent).code(), StatusCode::kInternal);
   const size_t decoded = ExpectEveryBitCovered(s, &VerifyStatus);
   EXPECT_GT(decoded, Wire(s).size() * 8 / 2) << "most single-bit changes still decode";
 }

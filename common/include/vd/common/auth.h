@@ -56,7 +56,7 @@ Status SignMesh(const std::string& key, vdeform::mesh_t* msg);
 // also for an unsigned mesh (auth_size 0, refused without hashing the payload).
 Status VerifyMesh(const std::string& key, const vdeform::mesh_t& msg);
 // A status's MAC covers a domain tag and the status's LCM encoding with auth emptied: every field.
-// Fills msg->auth; Internal when OpenSSL fails or the arrays disagree with their counts.
+// Fills msg->auth; Internal when OpenSSL fails or an array disagrees with its count.
 Status SignStatus(const std::string& key, vdeform::server_status_t* msg);
 // As VerifyMesh, for a status.
 Status VerifyStatus(const std::string& key, const vdeform::server_status_t& msg);
