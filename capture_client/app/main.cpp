@@ -54,6 +54,9 @@ struct Args {
   // --frame-key-file, and the key of our source id read from it (empty = frames go unsigned).
   std::string frame_key_file;
   std::string frame_key;
+  // --output-key-file, and the server's output key read from it (empty = status not verified).
+  std::string output_key_file;
+  std::string output_key;
   std::string lcm_url;
   std::string write_dir;
   bool quiet = false;
@@ -110,6 +113,11 @@ void Bind(FlagParser* f, Args* a) {
          "Sign every frame with HMAC-SHA256 under the key for --source-id in FILE (the server's --frame-key-file: "
          "one line KEY for every source, or SOURCE_ID KEY lines; KEY is 64 hex digits, mode 600); empty = unsigned",
          "FILE");
+  f->Add("output-key-file", &a->output_key_file,
+         "With --lockstep: the server's --output-key-file (one line KEY, 64 hex digits, mode 600); only status "
+         "messages signed under it by the running server acknowledge a frame, others are ignored and counted in "
+         "the summary; empty = every status counts",
+         "FILE");
   f->Section("Other");
   f->Add("write", &a->write_dir,
          "With a synthetic source: write the scene as a VolumeDeform-layout folder (colour, depth, intrinsics.txt, "
@@ -149,6 +157,9 @@ Status Finish(const FlagParser& flags, Args* args) {
                              "' (give --source-id, or add a line '" + a.source_id + " KEY')");
     a.frame_key = *key;
   }
+  if (!a.output_key_file.empty() && !a.lockstep)
+    return InvalidArgument("--output-key-file needs --lockstep (only lockstep reads the server's status)");
+  VD_ASSIGN_OR_RETURN(a.output_key, OutputKeyFromFlag(a.output_key_file));
   return Status::Ok();
 }
 
@@ -211,6 +222,7 @@ int Run(const Args& a) {
   pacing.lockstep_retries = a.lockstep_retries;
   pacing.source_id = a.source_id;
   pacing.channels = *ChannelsOfStream(a.stream);
+  pacing.output_key = a.output_key;
   auto pacer = FramePacer::Create(&lcm, pacing, &g_stop);
   if (!pacer.ok()) {
     std::fprintf(stderr, "vdeform-capture: error: %s\n", pacer.status().ToString().c_str());
@@ -221,7 +233,8 @@ int Run(const Args& a) {
   VD_LOG_INFO << "publishing on " << pacing.channels.frames << " at " << url << " as '" << a.source_id << "', "
               << (pacing.fps > 0 ? std::to_string(pacing.fps) + " fps" : std::string("max rate"))
               << (pacing.lockstep ? ", lockstep" : "") << ", depth " << DepthEncodingName(a.encode.depth)
-              << ", colour " << ColorEncodingName(a.encode.color) << (a.frame_key.empty() ? "" : ", signed");
+              << ", colour " << ColorEncodingName(a.encode.color) << (a.frame_key.empty() ? "" : ", signed")
+              << (a.output_key.empty() ? "" : ", status verified");
 
   vd::InstallStopSignalHandlers();
 
@@ -291,6 +304,11 @@ int Run(const Args& a) {
                static_cast<long long>(sent), static_cast<long long>((*pacer)->stats().resends), elapsed,
                elapsed > 0 ? sent / elapsed : 0.0, sent > 0 ? bytes / 1024.0 / static_cast<double>(sent) : 0.0,
                g_stop.load() ? ", stopped by signal" : "");
+  if (!a.output_key.empty()) {
+    const OutputRefusals& refused = (*pacer)->stats().status_refused;
+    std::fprintf(stderr, "vdeform-capture: ignored %lld status messages not signed by the server (%s)\n",
+                 static_cast<long long>(refused.total()), refused.ToString().c_str());
+  }
   // Destroying the source stops a live sensor before we return.
   source->reset();
   return rc;

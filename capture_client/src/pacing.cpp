@@ -45,7 +45,9 @@ StatusOr<std::unique_ptr<FramePacer>> FramePacer::Create(lcm::LCM* lcm, const Pa
 }
 
 FramePacer::FramePacer(lcm::LCM* lcm, const PacingOptions& options, const std::atomic<bool>* stop)
-    : lcm_(lcm), options_(options), stop_(stop) {}
+    : lcm_(lcm), options_(options), stop_(stop) {
+  if (!options_.output_key.empty()) verifier_.emplace(options_.output_key);
+}
 
 FramePacer::~FramePacer() {
   if (subscription_) lcm_->unsubscribe(subscription_);
@@ -59,6 +61,17 @@ void FramePacer::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&) 
       VD_LOG_WARNING << "ignoring malformed " << options_.channels.status << " messages: " << msg.status().ToString();
     }
     return;
+  }
+  if (verifier_) {
+    const OutputCheck check = verifier_->Check(*msg);
+    stats_.status_refused = verifier_->status_refused();
+    if (!check.ok()) {
+      if (logged_refusals_.insert(check.verdict).second)
+        VD_LOG_WARNING << "lockstep: ignoring status messages not signed by the server ("
+                       << OutputVerdictName(check.verdict) << "; counted, further ones not logged): "
+                       << check.status.message();
+      return;
+    }
   }
   if (msg->last_source_id != options_.source_id || !epoch_ || msg->last_epoch != *epoch_) return;
   if (msg->last_processed_seq > stats_.last_acked_seq) stats_.last_acked_seq = msg->last_processed_seq;

@@ -2,9 +2,11 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstring>
 #include <fstream>
+#include <initializer_list>
 #include <memory>
 #include <optional>
 #include <sstream>
@@ -63,13 +65,26 @@ class HmacStream {
   bool ok_ = false;
 };
 
-std::optional<Sha256Digest> Hmac(const std::string& key, const std::string& data) {
+// A contiguous range of bytes a MAC streams after its header.
+struct ByteRange {
+  const void* data;
+  size_t size;
+};
+
+// The HMAC of `header` followed by `payloads`, each hashed where it lies (no copy).
+std::optional<Sha256Digest> StreamedHmac(const std::string& key, const std::string& header,
+                                         std::initializer_list<ByteRange> payloads = {}) {
   HmacStream mac(key);
-  mac.Update(data.data(), data.size());
+  mac.Update(header.data(), header.size());
+  for (const ByteRange& p : payloads) mac.Update(p.data, p.size);
   return mac.Final();
 }
 
-std::optional<Sha256Digest> FrameHmac(const std::string& key, const vdeform::rgbd_frame_t& msg) {
+std::optional<Sha256Digest> Hmac(const std::string& key, const std::string& data) { return StreamedHmac(key, data); }
+
+// Each kind of message starts its MAC with its own domain tag (no tag is a prefix of another), so
+// a MAC of one kind never verifies as another, whatever the key.
+std::optional<Sha256Digest> Mac(const std::string& key, const vdeform::rgbd_frame_t& msg) {
   std::string header = "vdeform-frame-v1";
   AppendU64(&header, uint64_t(msg.utime));
   AppendU64(&header, uint64_t(msg.seq));
@@ -83,11 +98,45 @@ std::optional<Sha256Digest> FrameHmac(const std::string& key, const vdeform::rgb
   // The arrays' lengths go first, so no byte can move between depth and colour unnoticed.
   AppendU64(&header, msg.depth_data.size());
   AppendU64(&header, msg.color_data.size());
-  HmacStream mac(key);
-  mac.Update(header.data(), header.size());
-  mac.Update(msg.depth_data.data(), msg.depth_data.size());
-  mac.Update(msg.color_data.data(), msg.color_data.size());
-  return mac.Final();
+  return StreamedHmac(key, header,
+                      {{msg.depth_data.data(), msg.depth_data.size()}, {msg.color_data.data(), msg.color_data.size()}});
+}
+
+std::optional<Sha256Digest> Mac(const std::string& key, const vdeform::mesh_t& msg) {
+  std::string header = "vdeform-mesh-v1";
+  AppendU64(&header, uint64_t(msg.utime));
+  AppendU64(&header, uint64_t(msg.seq));
+  header.push_back(char(msg.kind));
+  AppendU64(&header, uint32_t(msg.num_vertices));
+  AppendU64(&header, uint32_t(msg.num_triangles));
+  header.push_back(char(msg.encoding));
+  for (float v : msg.bbox_min) AppendFloat(&header, v);
+  for (float v : msg.bbox_max) AppendFloat(&header, v);
+  AppendU64(&header, uint64_t(msg.epoch));
+  AppendU64(&header, uint64_t(msg.out_seq));
+  AppendU64(&header, uint32_t(msg.data_size));
+  AppendU64(&header, msg.data.size());
+  return StreamedHmac(key, header, {{msg.data.data(), msg.data.size()}});
+}
+
+// The status's own LCM encoding with auth emptied: every field by construction (its ~45 fields
+// listed by hand would drift as fields are added), and small (under 1 KB), so the copy is cheap.
+// Empty when an array disagrees with its count: lcm-gen's encode would read past the vector (a
+// decoded message always agrees; one the node fills must too).
+std::optional<Sha256Digest> Mac(const std::string& key, const vdeform::server_status_t& msg) {
+  const size_t reasons = size_t(std::max(msg.num_reject_reasons, 0)), stages = size_t(std::max(msg.num_stages, 0));
+  if (msg.num_reject_reasons < 0 || msg.reject_reason.size() != reasons || msg.reject_count.size() != reasons ||
+      msg.num_stages < 0 || msg.stage_name.size() != stages || msg.stage_ms_last.size() != stages ||
+      msg.stage_ms_mean.size() != stages)
+    return std::nullopt;
+  vdeform::server_status_t copy = msg;
+  copy.auth_size = 0;
+  copy.auth.clear();
+  const std::string tag = "vdeform-status-v1";
+  std::string header(tag.size() + size_t(copy.getEncodedSize()), '\0');
+  std::memcpy(header.data(), tag.data(), tag.size());
+  if (copy.encode(header.data() + tag.size(), 0, int(header.size() - tag.size())) < 0) return std::nullopt;
+  return StreamedHmac(key, header);
 }
 
 // The MAC in a message's auth field against the expected one, in constant time.
@@ -96,7 +145,7 @@ Status CheckMac(const std::optional<Sha256Digest>& expected, int32_t auth_size, 
   if (auth_size != int32_t(kMacBytes) || auth.size() != kMacBytes)
     return PermissionDenied(std::string(what) + " carries no HMAC-SHA256 (auth_size " + std::to_string(auth_size) +
                             ")");
-  if (!expected) return Internal(std::string("OpenSSL could not compute the HMAC of a ") + what);
+  if (!expected) return Internal(std::string("could not compute the HMAC of a ") + what);
   if (CRYPTO_memcmp(expected->data(), auth.data(), kMacBytes) != 0)
     return PermissionDenied(std::string(what) + " HMAC does not match the key");
   return Status::Ok();
@@ -108,6 +157,23 @@ bool SetMac(const std::optional<Sha256Digest>& mac, int32_t* auth_size, std::vec
   if (mac) auth->assign(mac->begin(), mac->end());
   *auth_size = int32_t(auth->size());
   return mac.has_value();
+}
+
+// Fills msg->auth with the MAC of its other fields; Internal (and msg left unsigned) when OpenSSL
+// failed. Shared by frames, meshes and status.
+template <typename Msg>
+Status SignMessage(const std::string& key, Msg* msg, const char* what) {
+  if (!SetMac(Mac(key, *msg), &msg->auth_size, &msg->auth))
+    return Internal(std::string("could not compute the HMAC of a ") + what);
+  return Status::Ok();
+}
+
+// Ok when msg->auth is the MAC under key; an unsigned message is refused without hashing its
+// payload.
+template <typename Msg>
+Status VerifyMessage(const std::string& key, const Msg& msg, const char* what) {
+  if (msg.auth_size == 0) return PermissionDenied(std::string(what) + " carries no HMAC-SHA256 (auth_size 0)");
+  return CheckMac(Mac(key, msg), msg.auth_size, msg.auth, what);
 }
 
 int HexDigit(char c) {
@@ -171,16 +237,18 @@ Status VerifyControl(const std::string& key, const vdeform::control_t& msg) {
   return CheckMac(Hmac(key, ControlAuthBytes(msg)), msg.auth_size, msg.auth, "control message");
 }
 
-Status SignFrame(const std::string& key, vdeform::rgbd_frame_t* msg) {
-  if (!SetMac(FrameHmac(key, *msg), &msg->auth_size, &msg->auth))
-    return Internal("OpenSSL could not compute the HMAC of frame " + std::to_string(msg->seq));
-  return Status::Ok();
-}
+Status SignFrame(const std::string& key, vdeform::rgbd_frame_t* msg) { return SignMessage(key, msg, "frame"); }
 
-Status VerifyFrame(const std::string& key, const vdeform::rgbd_frame_t& msg) {
-  // An unsigned frame is refused without hashing its payload.
-  if (msg.auth_size == 0) return PermissionDenied("frame carries no HMAC-SHA256 (auth_size 0)");
-  return CheckMac(FrameHmac(key, msg), msg.auth_size, msg.auth, "frame");
+Status VerifyFrame(const std::string& key, const vdeform::rgbd_frame_t& msg) { return VerifyMessage(key, msg, "frame"); }
+
+Status SignMesh(const std::string& key, vdeform::mesh_t* msg) { return SignMessage(key, msg, "mesh"); }
+
+Status VerifyMesh(const std::string& key, const vdeform::mesh_t& msg) { return VerifyMessage(key, msg, "mesh"); }
+
+Status SignStatus(const std::string& key, vdeform::server_status_t* msg) { return SignMessage(key, msg, "status"); }
+
+Status VerifyStatus(const std::string& key, const vdeform::server_status_t& msg) {
+  return VerifyMessage(key, msg, "status");
 }
 
 int64_t RandomEpoch() {
@@ -210,14 +278,14 @@ const std::string* FrameKeys::For(const std::string& source_id) const {
   return it == per_source_.end() ? nullptr : &it->second;
 }
 
-StatusOr<FrameKeys> FrameKeys::Parse(const std::string& text, const std::string& path) {
+StatusOr<FrameKeys> FrameKeys::Parse(const std::string& text, const std::string& path, const std::string& what) {
   FrameKeys keys;
   std::map<std::string, int> line_of;
   int single_line = 0;
   std::istringstream in(text);
   std::string line;
   for (int number = 1; std::getline(in, line); ++number) {
-    const std::string where = "frame key file '" + path + "' line " + std::to_string(number) + ": ";
+    const std::string where = what + " '" + path + "' line " + std::to_string(number) + ": ";
     std::istringstream words(line);
     std::vector<std::string> fields;
     for (std::string w; words >> w;) fields.push_back(w);
@@ -256,13 +324,32 @@ StatusOr<FrameKeys> FrameKeys::Parse(const std::string& text, const std::string&
                              std::to_string(it->second));
     keys.per_source_[fields[0]] = std::move(key);
   }
-  if (keys.empty()) return InvalidArgument("frame key file '" + path + "' holds no key");
+  if (keys.empty()) return InvalidArgument(what + " '" + path + "' holds no key");
   return keys;
 }
 
 StatusOr<FrameKeys> ReadFrameKeys(const std::string& path) {
   VD_ASSIGN_OR_RETURN(std::string text, ReadPrivateFile(path, "frame key file"));
   return FrameKeys::Parse(text, path);
+}
+
+StatusOr<std::string> ParseOutputKey(const std::string& text, const std::string& path) {
+  VD_ASSIGN_OR_RETURN(const FrameKeys keys, FrameKeys::Parse(text, path, "output key file"));
+  if (keys.per_source())
+    return InvalidArgument("output key file '" + path +
+                           "' has SOURCE_ID KEY lines; the server's output has no source: give one line KEY (" +
+                           std::to_string(2 * kFrameKeyBytes) + " hex digits, openssl rand -hex 32)");
+  return *keys.For("");
+}
+
+StatusOr<std::string> ReadOutputKey(const std::string& path) {
+  VD_ASSIGN_OR_RETURN(std::string text, ReadPrivateFile(path, "output key file"));
+  return ParseOutputKey(text, path);
+}
+
+StatusOr<std::string> OutputKeyFromFlag(const std::string& path) {
+  if (path.empty()) return std::string();
+  return ReadOutputKey(path);
 }
 
 }  // namespace vd

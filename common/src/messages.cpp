@@ -171,7 +171,9 @@ Status ValidateLcmWire<vdeform::mesh_t>(const void* data, size_t size) {
   VD_RETURN_IF_ERROR(w.Skip(8 + 8 + 1 + 4 + 4 + 1, "utime/seq/kind/counts/encoding"));
   VD_RETURN_IF_ERROR(w.Count("data_size", &n));
   VD_RETURN_IF_ERROR(w.Array(n, 1, "data"));
-  return w.Skip(6 * 4, "bbox");
+  VD_RETURN_IF_ERROR(w.Skip(6 * 4 + 8 + 8, "bbox/epoch/out_seq"));
+  VD_RETURN_IF_ERROR(w.Count("auth_size", &n));
+  return w.Array(n, 1, "auth");
 }
 
 template <>
@@ -196,7 +198,10 @@ Status ValidateLcmWire<vdeform::server_status_t>(const void* data, size_t size) 
   VD_RETURN_IF_ERROR(w.Skip(4 + 3 * 4, "fps, latency_ms_last/p50/p95"));
   VD_RETURN_IF_ERROR(w.Skip(8 + 4 + 4 + 4 + 4 + 8, "active_voxels..resident_memory_bytes"));
   VD_RETURN_IF_ERROR(w.Skip(8 + 8, "model_frames/checkpoint_utime"));
-  return w.String("checkpoint_message");
+  VD_RETURN_IF_ERROR(w.String("checkpoint_message"));
+  VD_RETURN_IF_ERROR(w.Skip(8 + 8, "epoch/out_seq"));
+  VD_RETURN_IF_ERROR(w.Count("auth_size", &n));
+  return w.Array(n, 1, "auth");
 }
 
 template <>
@@ -345,6 +350,10 @@ StatusOr<vdeform::mesh_t> MeshToMessage(const TriangleMesh& mesh, int64_t utime,
   msg.num_triangles = 0;
   msg.data_size = 0;
   for (int a = 0; a < 3; ++a) msg.bbox_min[a] = msg.bbox_max[a] = 0.f;
+  // The publisher stamps its run and count, and signs (vdeform-server: Node's PublishOutput).
+  msg.epoch = 0;
+  msg.out_seq = 0;
+  msg.auth_size = 0;
   // A mesh with no triangles (for example before the first fused frame) is sent as zero bytes.
   if (mesh.empty()) return msg;
   if (encoding == vdeform::mesh_t::ENCODING_DRACO) {

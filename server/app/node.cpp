@@ -17,6 +17,7 @@
 #include "core/checkpoint.h"
 #include "snapshot.h"
 #include "stats.h"
+#include "vd/common/auth.h"
 #include "vd/common/log.h"
 #include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
@@ -41,12 +42,14 @@ int64_t NowUs() {
 
 class Node::Impl {
  public:
-  Impl(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate)
+  Impl(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate,
+       std::string output_key)
       : options_(options),
         channels_(*ChannelsOfStream(options.stream)),
         lcm_(lcm),
         engine_(std::move(engine)),
         gate_(std::move(gate)),
+        output_key_(std::move(output_key)),
         scheduler_(!options.checkpoint_dir.empty(), options.checkpoint_interval, Clock::now()) {}
 
   void OnFrame(const lcm::ReceiveBuffer* rbuf) {
@@ -316,7 +319,7 @@ class Node::Impl {
       st.resident_memory_bytes = ResidentBytes();
       last_status_ = Clock::now();
     }
-    lcm_->publish(channels_.status, &st);
+    PublishOutput(channels_.status, &st, &SignStatus);
   }
 
  private:
@@ -391,13 +394,31 @@ class Node::Impl {
   // The live mesh always; the canonical one when it changed, at most once a second, or on request.
   void PublishMeshes(bool force_canonical) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (last_live_) lcm_->publish(channels_.mesh, &*last_live_);
+    if (last_live_) PublishOutput(channels_.mesh, &*last_live_, &SignMesh);
     const auto now = Clock::now();
     if (last_canonical_ && (force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1)))) {
-      lcm_->publish(channels_.mesh, &*last_canonical_);
+      PublishOutput(channels_.mesh, &*last_canonical_, &SignMesh);
       last_canonical_sent_ = now;
       canonical_changed_ = false;
     }
+  }
+
+  // Stamps this run's epoch and the next out_seq on an outgoing mesh or status, signs it under the
+  // output key when there is one, and publishes it. One message at a time, so out_seq grows in
+  // the order messages leave (the worker and the receive thread both publish).
+  template <typename Msg>
+  void PublishOutput(const std::string& channel, Msg* msg, Status (*sign)(const std::string&, Msg*)) {
+    std::lock_guard<std::mutex> lock(output_mutex_);
+    msg->epoch = epoch_;
+    msg->out_seq = ++out_seq_;
+    msg->auth_size = 0;
+    msg->auth.clear();
+    if (!output_key_.empty()) {
+      // Left unsigned on failure: receivers with the key refuse it, and the log says why.
+      const Status s = sign(output_key_, msg);
+      if (!s.ok() && sign_failures_++ == 0) VD_LOG_ERROR << "cannot sign the output: " << s.ToString();
+    }
+    lcm_->publish(channel, msg);
   }
 
   // The engine's model with the sequence number and source of the last frame in it.
@@ -463,6 +484,16 @@ class Node::Impl {
   std::vector<std::string> snapshot_requests_;
   // Decides about every message before it reaches the engine; counts what it received.
   FrameGate gate_;
+  // Signs every mesh and status (empty: unsigned); set once at start.
+  const std::string output_key_;
+  // This server run, in every mesh and status: a restart is a new epoch to the receivers.
+  const int64_t epoch_ = RandomEpoch();
+  // Orders stamping and publishing of the output; taken after mutex_ when both are held.
+  std::mutex output_mutex_;
+  // The out_seq of the last message published (guarded by output_mutex_).
+  int64_t out_seq_ = 0;
+  // Messages that went out unsigned because signing failed (logged once).
+  int64_t sign_failures_ = 0;
   // Decides when the worker writes a checkpoint.
   CheckpointScheduler scheduler_;
   // Frames received are counted by the gate; these are what became of them after it.
@@ -508,8 +539,9 @@ class Node::Impl {
   Clock::time_point last_status_{};
 };
 
-Node::Node(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate)
-    : impl_(std::make_unique<Impl>(options, lcm, std::move(engine), std::move(gate))) {}
+Node::Node(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate,
+           std::string output_key)
+    : impl_(std::make_unique<Impl>(options, lcm, std::move(engine), std::move(gate), std::move(output_key))) {}
 Node::~Node() = default;
 
 void Node::OnFrame(const lcm::ReceiveBuffer* rbuf, const std::string&) { impl_->OnFrame(rbuf); }
@@ -541,6 +573,11 @@ int RunNode(const ServerOptions& options) {
     std::fprintf(stderr, "vdeform-server: %s\n", gate.status().message().c_str());
     return 2;
   }
+  auto output_key = OutputKeyFromFlag(options.output_key_file);
+  if (!output_key.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", output_key.status().message().c_str());
+    return 2;
+  }
   const std::string url = ResolveLcmUrl(options.lcm_url);
   lcm::LCM lcm(url);
   if (!lcm.good()) {
@@ -561,7 +598,8 @@ int RunNode(const ServerOptions& options) {
     VD_LOG_INFO << "frames must be signed (" << gate->frame_keys.size()
                 << (gate->frame_keys.per_source() ? " source keys)" : " key for every source)");
   if (!gate->accept_sources.empty()) VD_LOG_INFO << "accepting frames only from: " << options.accept_sources;
-  Node node(options, &lcm, std::move(engine).value(), std::move(gate).value());
+  if (!output_key->empty()) VD_LOG_INFO << "meshes and status are signed under the output key";
+  Node node(options, &lcm, std::move(engine).value(), std::move(gate).value(), std::move(output_key).value());
   // A refused checkpoint is reported (log and status) and the server starts a new model.
   if (options.resume) node.Resume();
   const StreamChannels channels = *ChannelsOfStream(options.stream);

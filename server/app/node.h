@@ -21,8 +21,10 @@ int64_t NowUs();
 
 class Node {
  public:
-  // `options` and `lcm` must outlive the node.
-  Node(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate = {});
+  // `options` and `lcm` must outlive the node. `output_key` (OutputKeyFromFlag): every mesh
+  // and status is signed under it; empty: they go unsigned.
+  Node(const ServerOptions& options, lcm::LCM* lcm, std::unique_ptr<Engine> engine, GateOptions gate = {},
+       std::string output_key = {});
   ~Node();
 
   // LCM handlers (subscribe them to the stream's frame and control channels).

@@ -52,6 +52,11 @@ void ServerOptions::Register(FlagParser* f) {
          "every source, or SOURCE_ID KEY lines; KEY is 64 hex digits (openssl rand -hex 32), mode 600. Unsigned, "
          "wrongly signed and replayed frames are counted and refused; empty = frames are not authenticated",
          "FILE");
+  f->Add("output-key-file", &output_key_file,
+         "Sign every mesh and status message with HMAC-SHA256 under the key in FILE: one line KEY, 64 hex digits "
+         "(openssl rand -hex 32), mode 600; give the same file to vdeform-viewer/vdeform-web --key-file and "
+         "vdeform-capture --output-key-file, which then take only this server's output. Empty = unsigned",
+         "FILE");
   gate.Bind(f);
   f->Section("Output");
   f->AddSwitch("quiet", &quiet, "Only warnings and errors");

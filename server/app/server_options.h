@@ -40,6 +40,9 @@ struct ServerOptions {
   std::string control_key_file;
   // Frames only when signed under their source's key in this file (one key, or SOURCE_ID KEY lines).
   std::string frame_key_file;
+  // Every mesh and status message signed under the key in this file (one line KEY), so viewers and
+  // lockstep captures given it take only what this server sent; empty = the output goes unsigned.
+  std::string output_key_file;
   // What the gate lets through: frame size, sequence jumps (bound to flags by GateParams::Bind).
   GateParams gate;
   bool quiet = false;

@@ -239,27 +239,77 @@ vdeform::rgbd_frame_t BenchFrameMessage(bool raw) {
 
 const std::string kBenchFrameKey(kFrameKeyBytes, '\x42');
 
-void BM_FrameSign(benchmark::State& state) {
-  vdeform::rgbd_frame_t msg = BenchFrameMessage(state.range(0) != 0);
+// Signing `msg` under kBenchFrameKey, as its sender does before publishing it.
+template <typename Msg>
+void BenchSign(benchmark::State& state, Msg msg, Status (*sign)(const std::string&, Msg*)) {
   for (auto _ : state) {
-    const Status s = SignFrame(kBenchFrameKey, &msg);
+    const Status s = sign(kBenchFrameKey, &msg);
     if (!s.ok()) state.SkipWithError(s.ToString().c_str());
     benchmark::DoNotOptimize(msg.auth.data());
   }
-  state.counters["bytes"] = static_cast<double>(msg.depth_size + msg.color_size);
+  state.counters["bytes"] = static_cast<double>(msg.getEncodedSize());
+}
+
+// Verifying the signed `msg`, as its receiver does before using it.
+template <typename Msg>
+void BenchVerify(benchmark::State& state, Msg msg, Status (*sign)(const std::string&, Msg*),
+                 Status (*verify)(const std::string&, const Msg&)) {
+  if (!sign(kBenchFrameKey, &msg).ok()) state.SkipWithError("cannot sign");
+  for (auto _ : state) {
+    const Status s = verify(kBenchFrameKey, msg);
+    if (!s.ok()) state.SkipWithError(s.ToString().c_str());
+    benchmark::DoNotOptimize(s);
+  }
+  state.counters["bytes"] = static_cast<double>(msg.getEncodedSize());
+}
+
+void BM_FrameSign(benchmark::State& state) {
+  BenchSign(state, BenchFrameMessage(state.range(0) != 0), &SignFrame);
   state.SetLabel(TestImages().label);
 }
 
 void BM_FrameVerify(benchmark::State& state) {
-  vdeform::rgbd_frame_t msg = BenchFrameMessage(state.range(0) != 0);
-  if (!SignFrame(kBenchFrameKey, &msg).ok()) state.SkipWithError("cannot sign");
-  for (auto _ : state) {
-    const Status s = VerifyFrame(kBenchFrameKey, msg);
-    if (!s.ok()) state.SkipWithError(s.ToString().c_str());
-    benchmark::DoNotOptimize(s);
-  }
-  state.counters["bytes"] = static_cast<double>(msg.depth_size + msg.color_size);
+  BenchVerify(state, BenchFrameMessage(state.range(0) != 0), &SignFrame, &VerifyFrame);
   state.SetLabel(TestImages().label);
+}
+
+// The server's output since issue 15: the live mesh of BenchMeshWithCanonical (99,224 triangles,
+// with the canonical attribute, Draco at the server's default options) and a status as the node
+// fills it (its 8 stages, two reject reasons), signed by the server and verified by each viewer
+// and lockstep capture.
+vdeform::mesh_t BenchMeshMessage() {
+  vdeform::mesh_t msg = *MeshToMessage(BenchMeshWithCanonical(), 1764633600000000, 41, vdeform::mesh_t::KIND_LIVE);
+  msg.epoch = RandomEpoch();
+  msg.out_seq = 1234;
+  return msg;
+}
+
+vdeform::server_status_t BenchStatusMessage() {
+  vdeform::server_status_t st{};
+  st.utime = 1764633600000000;
+  st.state = vdeform::server_status_t::STATE_TRACKING;
+  st.message = "pthread-skylake-avx512 (Portable Computing Language)";
+  st.frames_received = st.frames_processed = 1000;
+  st.reject_reason = {"bad_signature", "unsigned"};
+  st.reject_count = {3, 7};
+  st.num_reject_reasons = 2;
+  st.last_processed_seq = 999;
+  st.last_source_id = "capture-host-12345";
+  st.last_epoch = RandomEpoch();
+  st.stage_name = {"preprocess", "raster", "icp", "nonrigid", "integrate", "marching_cubes", "download", "features"};
+  st.stage_ms_last = st.stage_ms_mean = std::vector<float>(st.stage_name.size(), 12.5f);
+  st.num_stages = int32_t(st.stage_name.size());
+  st.checkpoint_message = "checkpoint of 1000 frames, 20480 KiB, 150 ms";
+  st.epoch = RandomEpoch();
+  st.out_seq = 1235;
+  return st;
+}
+
+void BM_MeshSign(benchmark::State& state) { BenchSign(state, BenchMeshMessage(), &SignMesh); }
+void BM_MeshVerify(benchmark::State& state) { BenchVerify(state, BenchMeshMessage(), &SignMesh, &VerifyMesh); }
+void BM_StatusSign(benchmark::State& state) { BenchSign(state, BenchStatusMessage(), &SignStatus); }
+void BM_StatusVerify(benchmark::State& state) {
+  BenchVerify(state, BenchStatusMessage(), &SignStatus, &VerifyStatus);
 }
 
 // What the server's gate does with every valid frame after verifying it: both decoders.
@@ -277,6 +327,10 @@ void BM_FrameDecode(benchmark::State& state) {
 BENCHMARK(BM_FrameSign)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_FrameVerify)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
 BENCHMARK(BM_FrameDecode)->Arg(0)->Arg(1)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_MeshSign)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_MeshVerify)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_StatusSign)->Unit(benchmark::kMicrosecond);
+BENCHMARK(BM_StatusVerify)->Unit(benchmark::kMicrosecond);
 BENCHMARK_CAPTURE(BM_DepthEncode, raw16, DepthEncoding::kRaw16, -1)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DepthEncode, png16_default, DepthEncoding::kPng16, -1)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DepthEncode, png16_level1, DepthEncoding::kPng16, 1)->Unit(benchmark::kMillisecond);

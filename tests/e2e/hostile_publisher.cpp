@@ -5,6 +5,9 @@
 //   attack --group G --port P --source-id ID --earlier DIR --current DIR
 //          frames and commands a forger or replayer sends, paced; prints the counters each kind
 //          should move on the server as key=value lines
+//   forge-output --group G --port P --source-id ID --current DIR --seconds S
+//          for S seconds, status messages naming the current run's frames as processed and meshes
+//          of made-up frames, unsigned and signed under a wrong key; prints how many of each
 //   flood --group G --port P --seconds S            junk datagrams, junk frames, dangling fragments
 //          from many ports and complete 6.6 MB messages, as fast as it can; prints what it sent
 //   fill --group G --port P --count MB              every fragment but the last of one MB-sized
@@ -266,6 +269,60 @@ int Attack(const std::string& group, int port, const std::string& source, const 
   return tx.errors() == 0 ? 0 : 1;
 }
 
+// What a forger without the server's output key sends on the status and mesh channels: every 25 ms
+// a status naming frame `tick % 16` of the capture's current run (its epoch learned from a
+// recorded frame) as processed, unsigned, and one naming frame 2^40 signed under a wrong key
+// (either would release a lockstep capture that does not verify); and a valid Draco mesh of a
+// made-up frame, unsigned (seq 100000 + tick) and wrongly signed (200000 + tick).
+int ForgeOutput(const std::string& group, int port, const std::string& source, const std::string& current_dir,
+                double seconds) {
+  Sender tx(group, port);
+  if (!tx.ok()) return std::fprintf(stderr, "hostile: no socket\n"), 1;
+  const std::vector<Bytes> current = ReadDir(current_dir);
+  if (current.empty()) return std::fprintf(stderr, "hostile: nothing recorded\n"), 1;
+  auto base = DecodeLcm<vdeform::rgbd_frame_t>(current[0].data(), current[0].size());
+  if (!base.ok()) return std::fprintf(stderr, "hostile: %s\n", base.status().ToString().c_str()), 1;
+  TriangleMesh tetrahedron;
+  tetrahedron.positions = {0, 0, 1, 0.1f, 0, 1, 0, 0.1f, 1, 0, 0, 1.1f};
+  tetrahedron.colors = {255, 0, 0, 0, 255, 0, 0, 0, 255, 255, 255, 0};
+  tetrahedron.triangles = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+  const std::string wrong_key(kFrameKeyBytes, 'f');
+  int64_t statuses = 0, meshes = 0;
+  const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  for (int64_t tick = 0; std::chrono::steady_clock::now() < end; ++tick) {
+    const int64_t now = std::chrono::duration_cast<std::chrono::microseconds>(
+                            std::chrono::system_clock::now().time_since_epoch())
+                            .count();
+    for (const bool sign : {false, true}) {
+      vdeform::server_status_t st{};
+      st.utime = now;
+      st.state = vdeform::server_status_t::STATE_TRACKING;
+      st.message = "forged";
+      st.frames_processed = 1000 + tick;
+      st.last_processed_seq = sign ? int64_t(1) << 40 : tick % 16;
+      st.last_source_id = source;
+      st.last_epoch = base->epoch;
+      st.epoch = 4242;
+      st.out_seq = 1'000'000 + tick;
+      st.auth_size = 0;
+      if (sign && !SignStatus(wrong_key, &st).ok()) return 1;
+      tx.Message(kStatusChannel, Encode(st));
+      ++statuses;
+      auto mesh = MeshToMessage(tetrahedron, now, (sign ? 200000 : 100000) + tick, vdeform::mesh_t::KIND_LIVE);
+      if (!mesh.ok()) return std::fprintf(stderr, "hostile: %s\n", mesh.status().ToString().c_str()), 1;
+      mesh->epoch = 4242;
+      mesh->out_seq = 1'000'000 + tick;
+      if (sign && !SignMesh(wrong_key, &*mesh).ok()) return 1;
+      tx.Message(kMeshChannel, Encode(*mesh));
+      ++meshes;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(25));
+  }
+  std::printf("forged_status=%lld\nforged_meshes=%lld\nsend_errors=%lld\n", (long long)statuses, (long long)meshes,
+              (long long)tx.errors());
+  return tx.errors() == 0 ? 0 : 1;
+}
+
 // All fragments but the last of one message of `megabytes` MB: LCM 1.3 allocates the declared size
 // on the first fragment and keeps the buffer until the sender's next message or an eviction.
 int Fill(const std::string& group, int port, int megabytes) {
@@ -344,7 +401,7 @@ int Flood(const std::string& group, int port, double seconds) {
 
 int main(int argc, char** argv) {
   if (argc < 2) {
-    std::fprintf(stderr, "usage: vd_hostile_publisher record|attack|flood [flags]\n");
+    std::fprintf(stderr, "usage: vd_hostile_publisher record|attack|forge-output|flood|fill|wrap [flags]\n");
     return 2;
   }
   const std::string mode = argv[1];
@@ -358,14 +415,15 @@ int main(int argc, char** argv) {
   flags.Add("timeout", &timeout, "record: seconds to wait for them");
   flags.Add("group", &group, "attack, flood: multicast group");
   flags.Add("port", &port, "attack, flood: port");
-  flags.Add("source-id", &source, "attack: the accepted source id");
+  flags.Add("source-id", &source, "attack, forge-output: the accepted source id");
   flags.Add("earlier", &earlier, "attack: frames recorded from an earlier run of the source");
-  flags.Add("current", &current, "attack: frames recorded from its current run");
-  flags.Add("seconds", &seconds, "flood: how long");
+  flags.Add("current", &current, "attack, forge-output: frames recorded from its current run");
+  flags.Add("seconds", &seconds, "flood, forge-output: how long");
   if (auto rc = flags.ParseCommandLine(argc - 1, argv + 1, "vd_hostile_publisher")) return *rc;
   if (mode == "record") return vd::Record(url, count, out, timeout);
   if (mode == "attack") return vd::Attack(group, port, source, earlier, current);
   if (mode == "flood") return vd::Flood(group, port, seconds);
+  if (mode == "forge-output") return vd::ForgeOutput(group, port, source, current, seconds);
   if (mode == "fill") return vd::Fill(group, port, count);
   if (mode == "wrap") return vd::Wrap(group, port);
   std::fprintf(stderr, "vd_hostile_publisher: unknown mode '%s'\n", mode.c_str());

@@ -5,10 +5,15 @@
 # oversized, foreign and forged frames (unsigned with huge, repeating and small sequence numbers,
 # negative numbers, signed under another key); unsigned and wrongly signed commands with escaping
 # snapshot paths; 200 REQUEST_MESH from 20 names; then a flood of junk datagrams, junk frames,
-# dangling fragments from 64 ports and complete 6.6 MB messages. Asserted: every real frame processed (lockstep, exact); no forged
-# frame reaches the model; each counter moved by exactly what was sent, by reason; REQUEST_MESH
-# merged; the server's RSS grew by less than 5 %; nothing written anywhere (every snapshot command
-# was forged).
+# dangling fragments from 64 ports and complete 6.6 MB messages. Meanwhile it forges the server's
+# output: status messages naming the capture's frames as processed and meshes of made-up frames,
+# unsigned and signed under a wrong key; the server signs its output (--output-key-file), the
+# lockstep capture, a viewer and vdeform-web (--key-file) verify it. Asserted: every real frame processed
+# (lockstep, exact: a forged status taken would have sent frames early, into the server's one-slot
+# mailbox); the capture reports the forged statuses it ignored; the viewer saved exactly the real
+# live meshes and counted the forged ones, the web bridge forwarded none of them; no forged frame reaches the model; each counter moved by
+# exactly what was sent, by reason; REQUEST_MESH merged; the server's RSS grew by less than 5 %;
+# nothing written anywhere (every snapshot command was forged).
 #   hostile_test.sh BUILD_DIR
 set -uo pipefail
 build=$1
@@ -27,11 +32,14 @@ field() { local v; v=$(sed -n "s/^$2=//p" "$1" | head -1); echo "${v:-0}"; }
 delta() { echo $(($(field "$2" "$1") - $(field "$3" "$1"))); }  # KEY AFTER BEFORE
 
 head -c 32 /dev/urandom | base64 >"$work/control.key"
-openssl rand -hex 32 >"$work/frame.key" 2>/dev/null || od -An -tx1 -N32 /dev/urandom | tr -d ' \n' >"$work/frame.key"
-chmod 600 "$work/control.key" "$work/frame.key"
+for k in frame output; do
+  openssl rand -hex 32 >"$work/$k.key" 2>/dev/null || od -An -tx1 -N32 /dev/urandom | tr -d ' \n' >"$work/$k.key"
+done
+chmod 600 "$work/control.key" "$work/frame.key" "$work/output.key"
 mkdir -p "$work/run"
 (cd "$work/run" && exec "$build/server/vdeform-server" --lcm-url "$url" --voxel-size 0.008 \
   --frame-key-file "$work/frame.key" --control-key-file "$work/control.key" --accept-sources camA \
+  --output-key-file "$work/output.key" \
   --snapshot-dir "$work/run/snap") >"$work/server.log" 2>&1 &
 server=$!
 pids+=("$server")
@@ -40,7 +48,8 @@ vd_wait_for_server "$server" "$work/server.log" state HOSTILE
 capture() {  # count, log
   "$build/capture_client/vdeform-capture" --source synthetic:tube --count "$1" --lockstep --lockstep-timeout 5 \
     --lockstep-retries 10 \
-    --source-id camA --frame-key-file "$work/frame.key" --lcm-url "$url" --quiet >"$work/$2" 2>&1
+    --source-id camA --frame-key-file "$work/frame.key" --output-key-file "$work/output.key" --lcm-url "$url" \
+    --quiet >"$work/$2" 2>&1
 }
 record() {  # count, folder; sets rec to its pid
   "$hostile" record --lcm-url "$url" --count "$1" --out "$work/$2" --timeout 120 >"$work/record_$2.log" 2>&1 &
@@ -55,7 +64,19 @@ record 3 earlier
 sleep 0.5
 capture $warmup capture1.log || fail "first capture exited with $?"
 wait "$rec" || fail "the attacker recorded no earlier run"
-# The current run: the attacker records its first 2 frames, then attacks while it goes on.
+# The current run: a viewer with the output key saves its meshes; the attacker records its first
+# 2 frames, then attacks and forges the server's output while it goes on.
+mkdir -p "$work/view"
+"$build/viewer_client/vdeform-viewer" --headless --no-request --key-file "$work/output.key" --save-dir "$work/view" \
+  --lcm-url "$url" >"$work/viewer.log" 2>&1 &
+viewer=$!
+pids+=("$viewer")
+"$build/viewer_client/vdeform-web" --key-file "$work/output.key" --port 0 --quiet --lcm-url "$url" >"$work/web.log" 2>&1 &
+web=$!
+pids+=("$web")
+for _ in $(seq 1 50); do grep -q "listening on" "$work/viewer.log" && grep -q "serving" "$work/web.log" && break; sleep 0.1; done
+grep -q "listening on" "$work/viewer.log" || fail "the viewer did not start"
+grep -q "serving" "$work/web.log" || fail "vdeform-web did not start"
 frames=10
 record 2 current
 sleep 0.5
@@ -64,8 +85,13 @@ cap=$!
 pids+=("$cap")
 wait "$rec" || fail "the attacker recorded nothing of the current run"
 status >"$work/s0"
+"$hostile" forge-output --group $group --port $port --source-id camA --current "$work/current" --seconds 2 \
+  >"$work/forge" 2>"$work/forge.log" &
+forger=$!
+pids+=("$forger")
 "$hostile" attack --group $group --port $port --source-id camA --earlier "$work/earlier" --current "$work/current" \
   >"$work/attack" 2>"$work/attack.log" || fail "attack failed: $(cat "$work/attack.log")"
+wait "$forger" || fail "forge-output failed: $(cat "$work/forge.log")"
 sleep 1.5
 status >"$work/s1"
 "$hostile" flood --group $group --port $port --seconds 2 >"$work/flood" 2>"$work/flood.log" || fail "flood failed"
@@ -74,6 +100,9 @@ status >"$work/s2"
 wait "$cap" || fail "the real capture exited with $? (lockstep gave up?)"
 sleep 1
 status >"$work/s3"
+kill -INT "$viewer" "$web"
+wait "$viewer" || fail "viewer exited with $? after SIGINT"
+wait "$web" || fail "vdeform-web exited with $? after SIGINT"
 kill -INT "$server"
 wait "$server" || fail "server exited with $? after SIGINT"
 pids=()
@@ -128,4 +157,39 @@ echo "server RSS: $((rss0 >> 20)) MB before the attack, $((rss1 >> 20)) MB befor
 [ ! -e /tmp/vd-hostile-abs ] || fail "an absolute snapshot path was written"
 [ "$(find "$work/run" -mindepth 1 | wc -l)" -eq 0 ] || fail "the server wrote: $(find "$work/run" -mindepth 1)"
 grep -q "^vdeform-server: received" "$work/server.log" || fail "no server summary"
+# The forged output: the capture ignored the forged statuses it heard (all it verified were
+# unsigned or wrongly signed, none a replay of the server's own), the first run heard none; the
+# viewer saved exactly the real live meshes of this run and refused the forged meshes and statuses.
+forged_status=$(field "$work/forge" forged_status)
+forged_meshes=$(field "$work/forge" forged_meshes)
+grep -q "ignored 0 status messages not signed by the server" "$work/capture1.log" ||
+  fail "the first capture ignored status messages: $(cat "$work/capture1.log")"
+ignored=$(sed -n 's/.*ignored \([0-9]*\) status messages not signed by the server (\([0-9]*\) unsigned, \([0-9]*\) bad signature, \([0-9]*\) replayed).*/\1 \2 \3 \4/p' "$work/capture2.log")
+read -r n_ign n_uns n_bad n_rep <<<"${ignored:-x x x x}"
+[ "$n_uns" != x ] || fail "the capture did not report the statuses it ignored: $(cat "$work/capture2.log")"
+[ "$n_uns" -ge 1 ] && [ "$n_bad" -ge 1 ] && [ "$n_rep" -eq 0 ] && [ "$n_ign" -le "$forged_status" ] ||
+  fail "the capture ignored $ignored (total, unsigned, bad signature, replayed) of $forged_status forged statuses"
+echo "forged output: $forged_status statuses, $forged_meshes meshes; the lockstep capture ignored $n_ign" \
+  "($n_uns unsigned, $n_bad bad signature)"
+saved=$(cd "$work/view" && ls frame-*.mesh.ply 2>/dev/null | tr '\n' ' ')
+want=$(for k in $(seq 0 $((frames - 1))); do printf 'frame-%06d.mesh.ply ' "$k"; done)
+[ "$saved" = "$want" ] || fail "the viewer saved [$saved], expected the real [$want]"
+refused=$(sed -n 's/^  refused under --key-file: meshes \([0-9]*\) unsigned, \([0-9]*\) bad signature, \([0-9]*\) replayed; status \([0-9]*\) unsigned, \([0-9]*\) bad signature, \([0-9]*\) replayed$/\1 \2 \3 \4 \5 \6/p' "$work/viewer.log")
+read -r m_uns m_bad m_rep s_uns s_bad s_rep <<<"${refused:-x x x x x x}"
+[ "$m_uns" != x ] || fail "the viewer's summary has no refusals line"
+[ "$m_uns" -ge 1 ] && [ "$m_bad" -ge 1 ] && [ $((m_uns + m_bad)) -le "$forged_meshes" ] && [ "$m_rep" -eq 0 ] &&
+  [ "$s_uns" -ge 1 ] && [ "$s_bad" -ge 1 ] && [ $((s_uns + s_bad)) -le "$forged_status" ] && [ "$s_rep" -eq 0 ] ||
+  fail "viewer refused meshes $m_uns/$m_bad/$m_rep, status $s_uns/$s_bad/$s_rep (unsigned/bad/replayed)"
+echo "viewer: saved the $frames real live meshes; refused $m_uns unsigned and $m_bad wrongly signed meshes," \
+  "$s_uns and $s_bad statuses"
+# The web bridge: its last live mesh is the real last frame (a forged one is numbered 100000 and
+# up), on the one real stream, and it refused forged meshes and statuses of both kinds.
+line=$(grep "^vdeform-web: clients" "$work/web.log" | tail -1)
+echo "$line" | grep -q "| seq $((frames - 1)) (" || fail "vdeform-web's last mesh is not the real last frame: $line"
+echo "$line" | grep -q "streams)" && fail "vdeform-web heard more than the real stream: $line"
+w=$(echo "$line" | sed -n 's/.*not signed by the server: meshes \([0-9]*\) unsigned, \([0-9]*\) bad signature, \([0-9]*\) replayed; status \([0-9]*\) unsigned, \([0-9]*\) bad signature, \([0-9]*\) replayed.*/\1 \2 \3 \4 \5 \6/p')
+read -r w_uns w_bad w_rep ws_uns ws_bad ws_rep <<<"${w:-x x x x x x}"
+[ "$w_uns" != x ] && [ "$w_uns" -ge 1 ] && [ "$w_bad" -ge 1 ] && [ "$w_rep" -eq 0 ] && [ "$ws_uns" -ge 1 ] &&
+  [ "$ws_bad" -ge 1 ] && [ "$ws_rep" -eq 0 ] || fail "vdeform-web refused: $line"
+echo "vdeform-web: forwarded up to the real seq $((frames - 1)); refused $w_uns + $w_bad meshes, $ws_uns + $ws_bad statuses"
 echo "HOSTILE OK"

@@ -12,11 +12,13 @@
 # Phase 1 (ttl=0 stays on the host): capture in A publishes frames with ttl=0 while lcm-logger
 #   listens in A and in B. A's logger must record the frames (they are on the wire in A), B's
 #   logger none, and the server in B must not count them.
-# Phase 2 (ttl=1 crosses the segment): capture in A sends frames in lockstep with ttl=1 (every
-#   frame waits for the server's status from B, so both directions are exercised); the server in B
-#   must report exactly those frames received and processed, none dropped or rejected; each viewer
-#   in C (URL from $LCM_DEFAULT_URL, the other programs take --lcm-url) must save one decodable
-#   live mesh per frame (> 1000 vertices) and receive status messages naming those counts.
+# Phase 2 (ttl=1 crosses the segment), with every key: capture in A sends frames signed under the
+#   frame key in lockstep with ttl=1 (every frame waits for the server's status from B, which must
+#   verify under the output key, so both directions are exercised); the server in B must report
+#   exactly those frames received and processed, none dropped or rejected; each viewer in C (URL
+#   from $LCM_DEFAULT_URL, the other programs take --lcm-url; --key-file) must save one decodable
+#   live mesh per frame (> 1000 vertices), receive status messages naming those counts and refuse
+#   none of them; a SAVE_SNAPSHOT signed under the control key, sent from C, is taken in B.
 #
 #   netns_test.sh BUILD_DIR        exit 0 pass, 1 fail, 77 skip (not root, no netns/veth/bridge)
 set -uo pipefail
@@ -33,7 +35,7 @@ skip() { echo "NETNS SKIP: $*"; exit 77; }
 [ "$(id -u)" -eq 0 ] || skip "needs root to create network namespaces (run as root or under sudo)"
 command -v ip >/dev/null || skip "iproute2 'ip' not found"
 command -v lcm-logger >/dev/null || skip "lcm-logger (Debian liblcm-bin) not found"
-for p in server/vdeform-server capture_client/vdeform-capture viewer_client/vdeform-viewer; do
+for p in server/vdeform-server server/vdeform-control capture_client/vdeform-capture viewer_client/vdeform-viewer; do
   [ -x "$build/$p" ] || { echo "NETNS FAIL: $build/$p missing"; exit 1; }
 done
 
@@ -93,6 +95,14 @@ fail() {
   exit 1
 }
 
+# --- keys: frames (capture, server), control (server, vdeform-control), output (server; capture
+# and viewers verify) ---------------------------------------------------------------------------
+for k in frame output; do
+  openssl rand -hex 32 >"$work/$k.key" 2>/dev/null || od -An -tx1 -N32 /dev/urandom | tr -d ' \n' >"$work/$k.key"
+done
+head -c 32 /dev/urandom | base64 >"$work/control.key"
+chmod 600 "$work/frame.key" "$work/output.key" "$work/control.key"
+
 # --- topology ------------------------------------------------------------------------------
 for ns in $nsL $nsA $nsB $nsC; do
   ip netns add "$ns" 2>"$work/netns.err" || skip "'ip netns add $ns' failed: $(cat "$work/netns.err")"
@@ -126,14 +136,16 @@ echo "namespaces $nsA $nsB $nsC on bridge br0 in $nsL; multicast route 224.0.0.0
 
 # --- server in B, viewers in C -----------------------------------------------------------------
 t_start=$(date +%s.%N)
-ip netns exec $nsB "$build/server/vdeform-server" --lcm-url "$url1" --voxel-size 0.008 >"$work/server.log" 2>&1 &
+ip netns exec $nsB "$build/server/vdeform-server" --lcm-url "$url1" --voxel-size 0.008 \
+  --frame-key-file "$work/frame.key" --control-key-file "$work/control.key" --output-key-file "$work/output.key" \
+  --snapshot-dir "$work/snap" >"$work/server.log" 2>&1 &
 server=$!
 pids+=("$server")
 viewers=()
 for v in 1 2; do
   mkdir -p "$work/view$v"
   LCM_DEFAULT_URL="$url1" ip netns exec $nsC "$build/viewer_client/vdeform-viewer" --headless --quiet \
-    --save-dir "$work/view$v" --timeout 60 >"$work/viewer$v.log" 2>&1 &
+    --save-dir "$work/view$v" --key-file "$work/output.key" --timeout 60 >"$work/viewer$v.log" 2>&1 &
   viewers+=("$!")
   pids+=("$!")
 done
@@ -174,10 +186,18 @@ echo "phase 1 (ttl=0): capture in A sent ${sent0:-?}; seen on the wire in A: $in
 # --- phase 2: ttl=1 crosses ---------------------------------------------------------------------
 t2=$(date +%s.%N)
 run timeout 45 ip netns exec $nsA "$build/capture_client/vdeform-capture" --source synthetic:tube --count "$frames" \
-  --lockstep --lockstep-timeout 10 --lockstep-retries 1 --lcm-url "$url1" --quiet >"$work/capture.log" 2>&1 ||
+  --lockstep --lockstep-timeout 10 --lockstep-retries 1 --frame-key-file "$work/frame.key" \
+  --output-key-file "$work/output.key" --lcm-url "$url1" --quiet >"$work/capture.log" 2>&1 ||
   fail "ttl=1 capture exited with $? (124: timed out; frames or status do not cross the bridge)"
 t3=$(date +%s.%N)
 cat "$work/capture.log"
+run timeout 20 ip netns exec $nsC "$build/server/vdeform-control" --lcm-url "$url1" --command snapshot \
+  --path from-c --key-file "$work/control.key" --wait 5 >"$work/control.log" 2>&1 ||
+  fail "signed SAVE_SNAPSHOT from $nsC exited with $?: $(cat "$work/control.log")"
+grep -q "snapshot taken" "$work/control.log" || fail "SAVE_SNAPSHOT: $(cat "$work/control.log")"
+for _ in $(seq 1 50); do [ -s "$work/snap/from-c/live.ply" ] && break; sleep 0.1; done
+[ -s "$work/snap/from-c/live.ply" ] || fail "the signed SAVE_SNAPSHOT from $nsC wrote no $work/snap/from-c/live.ply"
+echo "signed SAVE_SNAPSHOT from C taken in B: $(ls "$work/snap/from-c" | tr '\n' ' ')"
 sleep 1.5
 kill -INT "${pids[@]}" 2>/dev/null
 wait $loggerB || fail "lcm-logger in $nsB exited non-zero"
@@ -193,6 +213,9 @@ echo "server in B: $line"
 echo "$line" | grep -q "received $frames, processed $frames, dropped 0, rejected 0" || fail "server counters: $line"
 echo "server in B counted 0 of the $leak_frames ttl=0 frames and all $frames ttl=1 frames"
 grep -q "sent $frames frames (0 re-sent)" "$work/capture.log" || fail "lockstep capture: $(cat "$work/capture.log")"
+grep -q "meshes and status are signed under the output key" "$work/server.log" || fail "the server's output is not signed"
+grep -q "ignored 0 status messages not signed by the server" "$work/capture.log" ||
+  fail "the lockstep capture refused the server's own status: $(cat "$work/capture.log")"
 for v in 1 2; do
   log=$work/viewer$v.log
   n=$(ls "$work/view$v"/frame-*.mesh.ply 2>/dev/null | wc -l)
@@ -209,6 +232,8 @@ for v in 1 2; do
   [ "$status" -ge 4 ] || fail "viewer $v received only $status status messages"
   grep -q "last status: .*received $frames, processed $frames, dropped 0, rejected 0" "$log" ||
     fail "viewer $v: last status does not name the $frames frames"
+  grep -q "refused under --key-file: meshes 0 unsigned, 0 bad signature, 0 replayed; status 0 unsigned, 0 bad signature, 0 replayed" "$log" ||
+    fail "viewer $v refused some of the server's signed output: $(grep 'refused under' "$log")"
   echo "viewer $v in C: $n live meshes (min $minv vertices), $status status messages, $(grep -m1 'meshes received' "$log" | sed 's/^ *//'), $(grep -m1 '^  bytes' "$log" | sed 's/^ *//')"
 done
 awk -v a="$t_start" -v b="$t2" -v c="$t3" -v n="$frames" \

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <pthread.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <csignal>
@@ -17,6 +18,7 @@
 #include "node.h"
 #include "ocl/ocl.h"
 #include "snapshot.h"
+#include "vd/common/output_auth.h"
 #include "vd/capture/synthetic.h"
 #include "../support/temp_dir.h"
 
@@ -48,7 +50,7 @@ class NodeTest : public ::testing::Test {
     ASSERT_TRUE(options_.Validate().ok());
     auto engine = Engine::Create(options_.engine, "");
     ASSERT_TRUE(engine.ok()) << engine.status().ToString();
-    node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value(), gate_);
+    node_ = std::make_unique<Node>(options_, &lcm_, std::move(engine).value(), gate_, output_key_);
     lcm_.subscribe(kFrameChannel, &Node::OnFrame, node_.get());
     lcm_.subscribe(kControlChannel, &Node::OnControl, node_.get());
     lcm_.subscribe(kStatusChannel, &Inbox::OnStatus, &inbox_);
@@ -85,6 +87,8 @@ class NodeTest : public ::testing::Test {
   ServerOptions options_;
   // What the node's gate is built with (a derived fixture sets keys before SetUp).
   GateOptions gate_;
+  // The node's output key (a derived fixture sets it before SetUp; empty: unsigned output).
+  std::string output_key_;
   std::unique_ptr<Node> node_;
   Inbox inbox_;
   RgbdFrame frame_;
@@ -294,6 +298,69 @@ TEST_F(SignedNodeTest, OnlySignedFramesReachTheModel) {
   EXPECT_EQ(RejectCount(st, "replayed"), 1);
   EXPECT_EQ(st.source_restarts, 1);
   EXPECT_EQ(st.model_frames, 2);
+}
+
+// Without an output key, meshes and status go out unsigned but stamped with the run and a count
+// (receivers without a key ignore both).
+TEST_F(NodeTest, OutputIsStampedAndUnsignedWithoutAKey) {
+  auto m = Message(0);
+  lcm_.publish(kFrameChannel, &m);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  Pump();
+  const auto& st = Status();
+  ASSERT_FALSE(inbox_.meshes.empty());
+  EXPECT_EQ(st.auth_size, 0);
+  EXPECT_EQ(inbox_.meshes.front().auth_size, 0);
+  EXPECT_NE(st.epoch, 0);
+  EXPECT_EQ(inbox_.meshes.front().epoch, st.epoch);
+  EXPECT_GT(st.out_seq, inbox_.meshes.front().out_seq);
+}
+
+// A node given an output key signs every mesh and status under it: each verifies, all carry the
+// run's epoch, and out_seq grows with every message of either kind, also across a republished
+// mesh (REQUEST_MESH), so a receiver's replay check takes each of them once.
+class SignedOutputNodeTest : public NodeTest {
+ protected:
+  void SetUp() override {
+    output_key_ = std::string(32, '\x42');
+    NodeTest::SetUp();
+  }
+};
+
+TEST_F(SignedOutputNodeTest, EveryMeshAndStatusIsSignedAndNumbered) {
+  auto m = Message(0);
+  lcm_.publish(kFrameChannel, &m);
+  Pump();
+  ASSERT_TRUE(node_->RunOnce());
+  Pump();
+  vdeform::control_t c{};
+  c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
+  c.auth_size = 0;
+  lcm_.publish(kControlChannel, &c);
+  Pump();
+  node_->Tick();
+  Pump();
+  Status();
+  ASSERT_GE(inbox_.meshes.size(), 4u) << "live and canonical, then both again on request";
+  ASSERT_GE(inbox_.status.size(), 2u);
+  std::vector<int64_t> out_seqs;
+  OutputVerifier verifier(output_key_);
+  for (const auto& mesh : inbox_.meshes) {
+    EXPECT_TRUE(VerifyMesh(output_key_, mesh).ok());
+    EXPECT_TRUE(verifier.Check(mesh).ok()) << "mesh out_seq " << mesh.out_seq;
+    EXPECT_EQ(mesh.epoch, inbox_.meshes.front().epoch);
+    out_seqs.push_back(mesh.out_seq);
+  }
+  for (const auto& st : inbox_.status) {
+    EXPECT_TRUE(VerifyStatus(output_key_, st).ok());
+    EXPECT_TRUE(verifier.Check(st).ok()) << "status out_seq " << st.out_seq;
+    EXPECT_EQ(st.epoch, inbox_.meshes.front().epoch);
+    out_seqs.push_back(st.out_seq);
+  }
+  std::sort(out_seqs.begin(), out_seqs.end());
+  EXPECT_EQ(std::adjacent_find(out_seqs.begin(), out_seqs.end()), out_seqs.end()) << "no out_seq twice";
+  EXPECT_FALSE(VerifyMesh(std::string(32, '\x43'), inbox_.meshes.front()).ok());
 }
 
 // The node with the gate's clock in the test's hand: REQUEST_MESH republishes the meshes at most

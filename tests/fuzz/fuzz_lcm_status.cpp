@@ -1,5 +1,6 @@
-// DecodeLcm<server_status_t>, what viewers and lockstep capture clients run on VDEFORM_STATUS. A
-// decoded message has arrays of its declared counts and re-encodes to the same bytes.
+// DecodeLcm<server_status_t> and the output key's check, what viewers and lockstep capture clients
+// run on VDEFORM_STATUS. A decoded message has arrays of its declared counts and re-encodes to the
+// same bytes; the verifier behaves as in fuzz_lcm_mesh.
 #include "fuzz_util.h"
 
 extern "C" int LLVMFuzzerInitialize(int*, char***) {
@@ -17,5 +18,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   VD_FUZZ_CHECK(msg->stage_name.size() == stages && msg->stage_ms_last.size() == stages &&
                 msg->stage_ms_mean.size() == stages);
   vd::fuzz::CheckLcmRoundTrip(*msg);
+  vd::fuzz::CheckOutputVerify(*msg, &vd::OutputVerifier::status_refused, &vd::SignStatus);
   return 0;
 }

@@ -13,9 +13,11 @@
 
 #include <opencv2/core.hpp>
 
+#include "vd/common/auth.h"
 #include "vd/common/log.h"
 #include "vd/common/messages.h"
 #include "vd/common/mesh.h"
+#include "vd/common/output_auth.h"
 
 // A decoder that accepted its input broke a promise it makes: stop so libFuzzer records the input.
 #define VD_FUZZ_CHECK(cond)                                             \
@@ -109,6 +111,36 @@ void CheckLcmRoundTrip(const Msg& msg) {
   std::vector<uint8_t> second(static_cast<size_t>(size));
   VD_FUZZ_CHECK(again->encode(second.data(), 0, size) == size);
   VD_FUZZ_CHECK(first == second);
+}
+
+// The server's output key that make_seeds.cpp signs the mesh and status seeds with, so the
+// fuzzer starts from messages the verifier takes.
+inline const std::string kOutputKey(kFrameKeyBytes, 'o');
+
+// The output key's check on a decoded mesh or status (vdeform-viewer --key-file, a lockstep
+// capture's --output-key-file): a refusal is PermissionDenied counted under exactly one reason,
+// unsigned exactly when auth_size is 0; what it takes was signed under the key (signing it again
+// gives the same auth bytes) and is refused as a replay when it comes again.
+template <typename Msg>
+void CheckOutputVerify(const Msg& msg, const OutputRefusals& (OutputVerifier::*refused)() const,
+                       Status (*sign)(const std::string&, Msg*)) {
+  OutputVerifier verifier(kOutputKey);
+  const OutputCheck first = verifier.Check(msg);
+  const OutputRefusals& counts = (verifier.*refused)();
+  if (!first.ok()) {
+    VD_FUZZ_CHECK(first.status.code() == StatusCode::kPermissionDenied);
+    VD_FUZZ_CHECK(counts.total() == 1 && counts.replayed == 0);
+    VD_FUZZ_CHECK((first.verdict == OutputVerdict::kUnsigned) == (msg.auth_size == 0));
+    VD_FUZZ_CHECK((counts.unsigned_messages == 1) == (msg.auth_size == 0));
+    return;
+  }
+  VD_FUZZ_CHECK(first.status.ok());
+  VD_FUZZ_CHECK(counts.total() == 0 && msg.auth_size == 32 && msg.auth.size() == 32);
+  Msg again = msg;
+  VD_FUZZ_CHECK(sign(kOutputKey, &again).ok());
+  VD_FUZZ_CHECK(again.auth == msg.auth);
+  VD_FUZZ_CHECK(verifier.Check(msg).verdict == OutputVerdict::kReplayed);
+  VD_FUZZ_CHECK(counts.replayed == 1 && counts.total() == 1);
 }
 
 }  // namespace vd::fuzz

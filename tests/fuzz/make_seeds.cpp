@@ -215,6 +215,13 @@ void MeshMessageSeeds(SeedWriter* w) {
                                 "mesh"));
   w->WriteLcm("lcm_mesh", "seed-empty",
               SeedWriter::Check(MeshToMessage(TriangleMesh(), 1700000000000000, 0, vdeform::mesh_t::KIND_LIVE), "mesh"));
+  // Signed under the fuzz targets' output key, so the verifier's accepting path is reached.
+  vdeform::mesh_t signed_mesh =
+      SeedWriter::Check(MeshToMessage(sphere, 1700000000000000, 9, vdeform::mesh_t::KIND_LIVE), "mesh");
+  signed_mesh.epoch = 77;
+  signed_mesh.out_seq = 12;
+  if (!SignMesh(kOutputKey, &signed_mesh).ok()) SeedWriter::Fail("cannot sign the mesh seed");
+  w->WriteLcm("lcm_mesh", "seed-draco-signed", signed_mesh);
 }
 
 void ControlSeeds(SeedWriter* w) {
@@ -256,6 +263,10 @@ void StatusSeeds(SeedWriter* w) {
   msg.num_stages = 3;
   msg.fps = 9.5f;
   w->WriteLcm("lcm_status", "seed-tracking", msg);
+  msg.epoch = 77;
+  msg.out_seq = 13;
+  if (!SignStatus(kOutputKey, &msg).ok()) SeedWriter::Fail("cannot sign the status seed");
+  w->WriteLcm("lcm_status", "seed-tracking-signed", msg);
   vdeform::server_status_t idle{};
   idle.state = vdeform::server_status_t::STATE_IDLE;
   idle.last_processed_seq = -1;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "vd/capture/pacing.h"
+#include "vd/common/auth.h"
 #include "vd/common/messages.h"
 
 namespace vd {
@@ -29,8 +30,13 @@ class FakeServer {
   // ack(seq, copy): whether to acknowledge the copy-th reception (0-based) of frame seq.
   using Policy = std::function<bool(int64_t seq, int copy)>;
 
-  FakeServer(lcm::LCM* lcm, std::string ack_source_id, double work_s, Policy policy)
-      : lcm_(lcm), ack_source_id_(std::move(ack_source_id)), work_s_(work_s), policy_(std::move(policy)) {
+  // `output_key`: acknowledgements are signed under it, numbered like a real server's (empty: unsigned).
+  FakeServer(lcm::LCM* lcm, std::string ack_source_id, double work_s, Policy policy, std::string output_key = "")
+      : lcm_(lcm),
+        ack_source_id_(std::move(ack_source_id)),
+        work_s_(work_s),
+        policy_(std::move(policy)),
+        output_key_(std::move(output_key)) {
     sub_ = lcm_->subscribe(kFrameChannel, &FakeServer::OnFrame, this);
     thread_ = std::thread([this] { Run(); });
   }
@@ -82,6 +88,11 @@ class FakeServer {
       status.state = vdeform::server_status_t::STATE_TRACKING;
       status.last_processed_seq = seq;
       status.last_source_id = ack_source_id_;
+      status.epoch = 42;
+      status.out_seq = ++out_seq_;
+      if (!output_key_.empty()) {
+        EXPECT_TRUE(SignStatus(output_key_, &status).ok());
+      }
       const auto t = Clock::now();
       lcm_->publish(kStatusChannel, &status);
       lock.lock();
@@ -93,6 +104,8 @@ class FakeServer {
   std::string ack_source_id_;
   double work_s_;
   Policy policy_;
+  std::string output_key_;
+  int64_t out_seq_ = 0;
   lcm::Subscription* sub_ = nullptr;
   std::mutex mutex_;
   std::condition_variable cv_;
@@ -315,6 +328,85 @@ TEST(FramePacer, AStatusAboutAnEarlierRunAcknowledgesNothing) {
   publish(2, 2);
   EXPECT_TRUE((*pacer)->Send(frame(2, 2)).ok());
   EXPECT_EQ((*pacer)->stats().last_acked_seq, 2);
+}
+
+// A forger on the group publishes, before each frame, an unsigned status and one signed under
+// another key, both naming the frame about to be sent. Without the output key they release the
+// pacer at once (the server would get frames faster than it works); with it the pacer waits for the
+// real server's signed acknowledgement of each frame and counts the forgeries it ignored.
+TEST(FramePacer, WithTheOutputKeyOnlyTheServersSignedStatusAcknowledges) {
+  const std::string key(32, '\x24');
+  for (const bool with_key : {false, true}) {
+    SCOPED_TRACE(with_key ? "with the output key" : "without it");
+    lcm::LCM lcm("memq://");
+    ASSERT_TRUE(lcm.good());
+    FakeServer server(&lcm, "test-source", 0.05, [](int64_t, int) { return true; }, key);
+    PacingOptions options = Lockstep(2.0, 0);
+    if (with_key) options.output_key = key;
+    auto pacer = FramePacer::Create(&lcm, options);
+    ASSERT_TRUE(pacer.ok());
+    int64_t forged_out_seq = 1000;
+    auto forge = [&](int64_t seq, const std::string& signer) {
+      vdeform::server_status_t status{};
+      status.state = vdeform::server_status_t::STATE_TRACKING;
+      status.last_processed_seq = seq;
+      status.last_source_id = "test-source";
+      status.epoch = 42;
+      status.out_seq = ++forged_out_seq;
+      if (!signer.empty()) {
+        ASSERT_TRUE(SignStatus(signer, &status).ok());
+      }
+      ASSERT_EQ(lcm.publish(kStatusChannel, &status), 0);
+    };
+    int fast_sends = 0;
+    for (int64_t k = 0; k < 4; ++k) {
+      forge(k, "");
+      forge(k, std::string(32, '\x25'));
+      const auto before = Clock::now();
+      ASSERT_TRUE((*pacer)->Send(Frame(k)).ok()) << "frame " << k;
+      // The server's acknowledgement takes its 50 ms of work.
+      fast_sends += SecondsSince(before) < 0.045;
+    }
+    const OutputRefusals& refused = (*pacer)->stats().status_refused;
+    if (with_key) {
+      EXPECT_EQ(fast_sends, 0) << "a forged status released the pacer";
+      EXPECT_EQ(refused.unsigned_messages, 4);
+      EXPECT_EQ(refused.bad_signature, 4);
+      // Every frame reached the server only after the real acknowledgement of the one before.
+      const auto received = server.receive_times();
+      const auto acked = server.ack_times();
+      ASSERT_EQ(received.size(), 4u);
+      ASSERT_GE(acked.size(), 3u);
+      for (size_t k = 0; k + 1 < received.size(); ++k) EXPECT_GE(received[k + 1], acked[k]) << "frame " << k + 1;
+    } else {
+      EXPECT_EQ(fast_sends, 4) << "the control: unverified status is taken as it comes";
+      EXPECT_EQ(refused.total(), 0);
+    }
+  }
+}
+
+// The real server's signed status played back by a recorder (one the pacer took before) is counted
+// as a replay and ignored.
+TEST(FramePacer, AReplayedSignedStatusIsIgnored) {
+  const std::string key(32, '\x24');
+  lcm::LCM lcm("memq://");
+  ASSERT_TRUE(lcm.good());
+  PacingOptions options = Lockstep(0.2, 0);
+  options.output_key = key;
+  auto pacer = FramePacer::Create(&lcm, options);
+  ASSERT_TRUE(pacer.ok());
+  vdeform::server_status_t status{};
+  status.last_source_id = "test-source";
+  status.last_processed_seq = 0;
+  status.epoch = 42;
+  status.out_seq = 7;
+  ASSERT_TRUE(SignStatus(key, &status).ok());
+  ASSERT_EQ(lcm.publish(kStatusChannel, &status), 0);
+  EXPECT_TRUE((*pacer)->Send(Frame(0)).ok());
+  ASSERT_EQ(lcm.publish(kStatusChannel, &status), 0);
+  EXPECT_EQ((*pacer)->Send(Frame(1)).code(), StatusCode::kDeadlineExceeded);
+  EXPECT_EQ((*pacer)->stats().status_refused.replayed, 1);
+  EXPECT_EQ((*pacer)->stats().last_acked_seq, 0);
 }
 
 TEST(FramePacer, ShortStallsKeepTheMeanRate) {

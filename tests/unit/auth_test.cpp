@@ -1,5 +1,7 @@
-// HMAC-SHA256 of control commands and frames: the RFC 4231 vectors, sign/verify, tampering with
-// every field, key files (control keys; frame key files with one or per-source keys).
+// HMAC-SHA256 of control commands, frames and the server's output (meshes, status): the RFC 4231
+// vectors, sign/verify, tampering with every field (for the output: every bit of the wire bytes),
+// no MAC valid across kinds, key files (control keys; frame key files with one or per-source keys;
+// the output key file with one key).
 #include <sys/stat.h>
 
 #include <filesystem>
@@ -9,6 +11,7 @@
 #include <gtest/gtest.h>
 
 #include "vd/common/auth.h"
+#include "vd/common/messages.h"
 
 namespace vd {
 namespace {
@@ -232,6 +235,222 @@ TEST(AuthTest, FrameKeyFilesMustExistAndBePrivate) {
   auto missing = ReadFrameKeys(dir + "/missing.key");
   EXPECT_EQ(missing.status().code(), StatusCode::kNotFound);
   EXPECT_NE(missing.status().message().find("frame key file '" + dir + "/missing.key'"), std::string::npos);
+}
+
+const std::string kOutputKey(32, '\x3c');
+
+vdeform::mesh_t MeshMessage() {
+  vdeform::mesh_t m{};
+  m.utime = 1764633600000000;
+  m.seq = 41;
+  m.kind = vdeform::mesh_t::KIND_LIVE;
+  m.num_vertices = 1200;
+  m.num_triangles = 2300;
+  m.encoding = vdeform::mesh_t::ENCODING_DRACO;
+  // Sign and Verify do not decode the payload: any bytes stand for the Draco stream.
+  for (int i = 0; i < 24; ++i) m.data.push_back(uint8_t(31 * i + 7));
+  m.data_size = int32_t(m.data.size());
+  for (int a = 0; a < 3; ++a) {
+    m.bbox_min[a] = -0.25f * float(a + 1);
+    m.bbox_max[a] = 0.5f * float(a + 1);
+  }
+  m.epoch = 0x1234567890abcdefLL;
+  m.out_seq = 77;
+  m.auth_size = 0;
+  return m;
+}
+
+vdeform::server_status_t StatusMessage() {
+  vdeform::server_status_t s{};
+  s.utime = 1764633600000123;
+  s.state = vdeform::server_status_t::STATE_TRACKING;
+  s.message = "tracking on pthread-cpu";
+  s.frames_received = 10;
+  s.frames_processed = 9;
+  s.frames_rejected = 1;
+  s.reject_reason = {"bad_signature"};
+  s.reject_count = {1};
+  s.num_reject_reasons = 1;
+  s.last_processed_seq = 8;
+  s.last_source_id = "camA";
+  s.last_epoch = 555;
+  s.stage_name = {"preprocess", "track"};
+  s.stage_ms_last = {1.5f, 20.f};
+  s.stage_ms_mean = {1.25f, 19.f};
+  s.num_stages = 2;
+  s.fps = 9.5f;
+  s.model_frames = 9;
+  s.checkpoint_message = "none";
+  s.epoch = 0x0fedcba987654321LL;
+  s.out_seq = 78;
+  s.auth_size = 0;
+  return s;
+}
+
+template <typename Msg>
+std::vector<uint8_t> Wire(const Msg& msg) {
+  std::vector<uint8_t> out(size_t(msg.getEncodedSize()));
+  EXPECT_EQ(msg.encode(out.data(), 0, int(out.size())), int(out.size()));
+  return out;
+}
+
+// Every single-bit change of a signed message's wire bytes either no longer decodes or decodes to
+// a message that does not verify: each field, the payload, the counts and the MAC are covered.
+// (An accepted message re-encodes to its own bytes, so one that decodes differs in some field.)
+// Returns how many of the changed messages decoded, which must be most of them for the test to
+// mean something.
+template <typename Msg>
+size_t ExpectEveryBitCovered(const Msg& signed_msg, Status (*verify)(const std::string&, const Msg&)) {
+  const std::vector<uint8_t> wire = Wire(signed_msg);
+  size_t decoded = 0;
+  for (size_t byte = 0; byte < wire.size(); ++byte) {
+    for (int bit = 0; bit < 8; ++bit) {
+      std::vector<uint8_t> changed = wire;
+      changed[byte] ^= uint8_t(1u << bit);
+      StatusOr<Msg> msg = DecodeLcm<Msg>(changed.data(), changed.size());
+      if (!msg.ok()) continue;
+      ++decoded;
+      EXPECT_EQ(verify(kOutputKey, *msg).code(), StatusCode::kPermissionDenied) << "byte " << byte << " bit " << bit;
+    }
+  }
+  return decoded;
+}
+
+TEST(AuthTest, SignedMeshesVerifyAndEveryBitIsCovered) {
+  vdeform::mesh_t m = MeshMessage();
+  const Status unsigned_status = VerifyMesh(kOutputKey, m);
+  EXPECT_EQ(unsigned_status.code(), StatusCode::kPermissionDenied);
+  EXPECT_NE(unsigned_status.message().find("mesh carries no HMAC-SHA256 (auth_size 0)"), std::string::npos)
+      << unsigned_status.message();
+  ASSERT_TRUE(SignMesh(kOutputKey, &m).ok());
+  ASSERT_EQ(m.auth_size, 32);
+  ASSERT_EQ(m.auth.size(), 32u);
+  EXPECT_TRUE(VerifyMesh(kOutputKey, m).ok());
+  EXPECT_EQ(VerifyMesh(std::string(32, '\x3d'), m).code(), StatusCode::kPermissionDenied) << "another key";
+  // Signing again gives the same MAC (the auth field itself is not covered).
+  vdeform::mesh_t again = m;
+  ASSERT_TRUE(SignMesh(kOutputKey, &again).ok());
+  EXPECT_EQ(again.auth, m.auth);
+  // The fields a forger would change, by name; then every bit.
+  using Change = void (*)(vdeform::mesh_t*);
+  const std::pair<const char*, Change> changes[] = {
+      {"seq", [](vdeform::mesh_t* t) { t->seq += 1; }},
+      {"epoch", [](vdeform::mesh_t* t) { t->epoch ^= 1; }},
+      {"out_seq", [](vdeform::mesh_t* t) { t->out_seq += 1; }},
+      {"kind", [](vdeform::mesh_t* t) { t->kind = vdeform::mesh_t::KIND_CANONICAL; }},
+      {"last data byte", [](vdeform::mesh_t* t) { t->data.back() ^= 1; }},
+      {"bbox", [](vdeform::mesh_t* t) { t->bbox_max[2] = 9.f; }},
+  };
+  for (const auto& [what, change] : changes) {
+    vdeform::mesh_t t = m;
+    change(&t);
+    EXPECT_EQ(VerifyMesh(kOutputKey, t).code(), StatusCode::kPermissionDenied) << what;
+  }
+  const size_t decoded = ExpectEveryBitCovered(m, &VerifyMesh);
+  EXPECT_GT(decoded, Wire(m).size() * 8 / 2) << "most single-bit changes still decode";
+}
+
+TEST(AuthTest, SignedStatusVerifiesAndEveryBitIsCovered) {
+  vdeform::server_status_t s = StatusMessage();
+  const Status unsigned_status = VerifyStatus(kOutputKey, s);
+  EXPECT_EQ(unsigned_status.code(), StatusCode::kPermissionDenied);
+  EXPECT_NE(unsigned_status.message().find("status carries no HMAC-SHA256 (auth_size 0)"), std::string::npos)
+      << unsigned_status.message();
+  ASSERT_TRUE(SignStatus(kOutputKey, &s).ok());
+  ASSERT_EQ(s.auth_size, 32);
+  EXPECT_TRUE(VerifyStatus(kOutputKey, s).ok());
+  EXPECT_EQ(VerifyStatus(std::string(32, '\x3d'), s).code(), StatusCode::kPermissionDenied) << "another key";
+  vdeform::server_status_t again = s;
+  ASSERT_TRUE(SignStatus(kOutputKey, &again).ok());
+  EXPECT_EQ(again.auth, s.auth);
+  using Change = void (*)(vdeform::server_status_t*);
+  const std::pair<const char*, Change> changes[] = {
+      {"last_processed_seq", [](vdeform::server_status_t* t) { t->last_processed_seq += 1; }},
+      {"last_source_id", [](vdeform::server_status_t* t) { t->last_source_id = "camB"; }},
+      {"last_epoch", [](vdeform::server_status_t* t) { t->last_epoch += 1; }},
+      {"epoch", [](vdeform::server_status_t* t) { t->epoch ^= 1; }},
+      {"out_seq", [](vdeform::server_status_t* t) { t->out_seq += 1; }},
+      {"checkpoint_message", [](vdeform::server_status_t* t) { t->checkpoint_message += "!"; }},
+  };
+  for (const auto& [what, change] : changes) {
+    vdeform::server_status_t t = s;
+    change(&t);
+    EXPECT_EQ(VerifyStatus(kOutputKey, t).code(), StatusCode::kPermissionDenied) << what;
+  }
+  // A status whose arrays disagree with their counts (a programmer's error; LCM's encode would read
+  // past the vector) is neither signed nor verified.
+  vdeform::server_status_t inconsistent = s;
+  inconsistent.num_stages = 3;
+  EXPECT_EQ(SignStatus(kOutputKey, &inconsistent).code(), StatusCode::kInternal);
+  EXPECT_EQ(inconsistent.auth_size, 0);
+  inconsistent = s;
+  inconsistent.reject_count.push_back(5);
+  EXPECT_EQ(VerifyStatus(kOutputKey, inconsistent).code(), StatusCode::kInternal);
+  const size_t decoded = ExpectEveryBitCovered(s, &VerifyStatus);
+  EXPECT_GT(decoded, Wire(s).size() * 8 / 2) << "most single-bit changes still decode";
+}
+
+// A MAC made for one kind of message never verifies as another kind: each starts from its own
+// domain tag. The status carries the mesh's MAC and the mesh the status's, with the fields they
+// share (utime, epoch, out_seq) equal.
+TEST(AuthTest, OutputSignaturesDoNotVerifyAcrossKinds) {
+  vdeform::mesh_t m = MeshMessage();
+  vdeform::server_status_t s = StatusMessage();
+  s.utime = m.utime;
+  s.epoch = m.epoch;
+  s.out_seq = m.out_seq;
+  ASSERT_TRUE(SignMesh(kOutputKey, &m).ok());
+  ASSERT_TRUE(SignStatus(kOutputKey, &s).ok());
+  ASSERT_NE(m.auth, s.auth);
+  vdeform::server_status_t status_with_mesh_mac = s;
+  status_with_mesh_mac.auth = m.auth;
+  EXPECT_EQ(VerifyStatus(kOutputKey, status_with_mesh_mac).code(), StatusCode::kPermissionDenied);
+  vdeform::mesh_t mesh_with_status_mac = m;
+  mesh_with_status_mac.auth = s.auth;
+  EXPECT_EQ(VerifyMesh(kOutputKey, mesh_with_status_mac).code(), StatusCode::kPermissionDenied);
+  // Nor does a frame's MAC under the same key (an operator may reuse one key file for both).
+  vdeform::rgbd_frame_t f = FrameMessage();
+  ASSERT_TRUE(SignFrame(kOutputKey, &f).ok());
+  mesh_with_status_mac.auth = f.auth;
+  EXPECT_EQ(VerifyMesh(kOutputKey, mesh_with_status_mac).code(), StatusCode::kPermissionDenied);
+}
+
+TEST(AuthTest, OutputKeyFilesHoldOneKey) {
+  auto key = ParseOutputKey("# the server's output key\n" + kHexA + "\n", "out.key");
+  ASSERT_TRUE(key.ok()) << key.status().ToString();
+  EXPECT_EQ(key->size(), 32u);
+  EXPECT_EQ(uint8_t((*key)[1]), 0x11);
+  auto per_source = ParseOutputKey("camA " + kHexA + "\n", "out.key");
+  ASSERT_FALSE(per_source.ok());
+  EXPECT_EQ(per_source.status().code(), StatusCode::kInvalidArgument);
+  EXPECT_NE(per_source.status().message().find("output key file 'out.key' has SOURCE_ID KEY lines"),
+            std::string::npos)
+      << per_source.status().message();
+  auto short_key = ParseOutputKey(kHexA.substr(1) + "\n", "out.key");
+  ASSERT_FALSE(short_key.ok());
+  EXPECT_NE(short_key.status().message().find("output key file 'out.key' line 1: the key has 63 characters"),
+            std::string::npos)
+      << short_key.status().message();
+  EXPECT_FALSE(ParseOutputKey("", "out.key").ok());
+
+  const std::string dir = testing::TempDir() + "/vd_output_key";
+  std::filesystem::create_directories(dir);
+  const std::string path = dir + "/output.key";
+  std::ofstream(path, std::ios::trunc) << kHexB << "\n";
+  chmod(path.c_str(), 0644);
+  auto open = ReadOutputKey(path);
+  EXPECT_EQ(open.status().code(), StatusCode::kPermissionDenied);
+  EXPECT_NE(open.status().message().find("output key file '" + path + "' is readable by group or others"),
+            std::string::npos)
+      << open.status().message();
+  chmod(path.c_str(), 0600);
+  auto read = ReadOutputKey(path);
+  ASSERT_TRUE(read.ok()) << read.status().ToString();
+  EXPECT_EQ(uint8_t((*read)[0]), 0xff);
+  // A program's flag: the file's key, or no key without the flag.
+  EXPECT_EQ(OutputKeyFromFlag(path).value(), *read);
+  EXPECT_EQ(OutputKeyFromFlag("").value(), "");
+  EXPECT_EQ(OutputKeyFromFlag(dir + "/missing.key").status().code(), StatusCode::kNotFound);
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
 
+#include "vd/common/auth.h"
 #include "vd/common/codecs.h"
 #include "vd/common/messages.h"
 #include "vd/viewer/receiver.h"
@@ -347,6 +348,107 @@ TEST_F(ReceiverTest, CorruptMessagesAreCountedAndDoNotStopDecoding) {
   EXPECT_EQ(receiver->live_mesh()->num_vertices(), 49u);
   const std::string summary = SummaryText(stats, receiver->last_status(), receiver->written_paths());
   EXPECT_NE(summary.find("failed " + std::to_string(stats.meshes_failed)), std::string::npos) << summary;
+}
+
+// With the server's output key (--key-file): a forged unsigned mesh and one signed under another
+// key are neither shown nor saved, and are counted by reason; a real mesh replayed (an out_seq not
+// after the last taken) is refused; a restarted server (new epoch, later utime) is taken; status
+// messages are checked alike (a forged one does not become last_status).
+TEST_F(ReceiverTest, WithAKeyOnlyTheServersSignedOutputIsShownAndSaved) {
+  const std::string key(32, '\x51');
+  ScratchDir dir;
+  ReceiverOptions options;
+  options.save_dir = dir.path();
+  options.output_key = key;
+  options.request_mesh = false;
+  auto receiver = Make(options);
+  const TriangleMesh mesh = Grid(4, 0.5f, 9, 9, 9);
+  // The server's run 5; each message signed under `signer` (empty: unsigned) with its out_seq.
+  auto mesh_msg = [&](int64_t seq, int64_t epoch, int64_t out_seq, int64_t utime, const std::string& signer) {
+    auto msg = MeshToMessage(mesh, utime, seq, vdeform::mesh_t::KIND_LIVE);
+    EXPECT_TRUE(msg.ok());
+    msg->epoch = epoch;
+    msg->out_seq = out_seq;
+    if (!signer.empty()) {
+      EXPECT_TRUE(SignMesh(signer, &*msg).ok());
+    }
+    return *msg;
+  };
+  auto publish_mesh = [&](int64_t seq, int64_t epoch, int64_t out_seq, int64_t utime, const std::string& signer) {
+    const vdeform::mesh_t msg = mesh_msg(seq, epoch, out_seq, utime, signer);
+    lcm_.publish(kMeshChannel, &msg);
+  };
+  const vdeform::mesh_t real = mesh_msg(1, 5, 10, 1000, key);
+  lcm_.publish(kMeshChannel, &real);
+  publish_mesh(900, 5, 11, 1000, "");
+  publish_mesh(901, 5, 12, 1000, std::string(32, '\x52'));
+  publish_mesh(2, 5, 13, 1001, key);
+  // The first real mesh again, recorded and played back: its out_seq 10 is not after 13.
+  lcm_.publish(kMeshChannel, &real);
+  // A forged status naming frame 900, then a real one.
+  vdeform::server_status_t forged_status = Status(vdeform::server_status_t::STATE_TRACKING, 901);
+  forged_status.epoch = 5;
+  forged_status.out_seq = 14;
+  lcm_.publish(kStatusChannel, &forged_status);
+  vdeform::server_status_t real_status = Status(vdeform::server_status_t::STATE_TRACKING, 3);
+  real_status.epoch = 5;
+  real_status.out_seq = 15;
+  ASSERT_TRUE(SignStatus(key, &real_status).ok());
+  lcm_.publish(kStatusChannel, &real_status);
+  Drain();
+  ReceiverStats stats = receiver->stats();
+  EXPECT_TRUE(stats.verifying);
+  EXPECT_EQ(stats.mesh_messages, 5);
+  EXPECT_EQ(stats.meshes_decoded, 2);
+  EXPECT_EQ(stats.live_meshes, 2);
+  EXPECT_EQ(stats.last_live_seq, 2);
+  EXPECT_EQ(stats.meshes_refused.unsigned_messages, 1);
+  EXPECT_EQ(stats.meshes_refused.bad_signature, 1);
+  EXPECT_EQ(stats.meshes_refused.replayed, 1);
+  EXPECT_EQ(stats.status_refused.unsigned_messages, 1);
+  EXPECT_EQ(stats.status_messages, 1);
+  ASSERT_TRUE(receiver->last_status().has_value());
+  EXPECT_EQ(receiver->last_status()->frames_processed, 3) << "the forged status is not shown";
+  EXPECT_FALSE(fs::exists(dir / "frame-000900.mesh.ply"));
+  EXPECT_FALSE(fs::exists(dir / "frame-000901.mesh.ply"));
+  EXPECT_EQ(receiver->written_paths(),
+            (std::vector<std::string>{dir / "frame-000001.mesh.ply", dir / "frame-000002.mesh.ply"}));
+
+  // The server restarted: a new epoch counting from 1 again, with later times, is taken; its
+  // earlier run is then a replay even with a higher out_seq.
+  publish_mesh(0, 6, 1, 2000, key);
+  publish_mesh(3, 5, 99, 1500, key);
+  Drain();
+  stats = receiver->stats();
+  EXPECT_EQ(stats.live_meshes, 3);
+  EXPECT_EQ(stats.last_live_seq, 0);
+  EXPECT_EQ(stats.meshes_refused.replayed, 2);
+  EXPECT_FALSE(fs::exists(dir / "frame-000003.mesh.ply"));
+  // The status line and the summary say what was refused.
+  EXPECT_NE(StatusLine(stats, receiver->last_status()).find("refused 5 (not signed by the server)"),
+            std::string::npos)
+      << StatusLine(stats, receiver->last_status());
+  const std::string summary = SummaryText(stats, receiver->last_status(), receiver->written_paths());
+  EXPECT_NE(summary.find("refused under --key-file: meshes 1 unsigned, 1 bad signature, 2 replayed; status 1 "
+                         "unsigned, 0 bad signature, 0 replayed"),
+            std::string::npos)
+      << summary;
+}
+
+// Without a key the same forged mesh is shown and saved, as before signing existed.
+TEST_F(ReceiverTest, WithoutAKeyUnsignedMeshesAreShown) {
+  ScratchDir dir;
+  ReceiverOptions options;
+  options.save_dir = dir.path();
+  options.request_mesh = false;
+  auto receiver = Make(options);
+  PublishMesh(Grid(4, 0.5f, 9, 9, 9), 900, vdeform::mesh_t::KIND_LIVE);
+  Drain();
+  EXPECT_FALSE(receiver->stats().verifying);
+  EXPECT_EQ(receiver->stats().live_meshes, 1);
+  EXPECT_TRUE(fs::exists(dir / "frame-000900.mesh.ply"));
+  EXPECT_EQ(SummaryText(receiver->stats(), receiver->last_status(), receiver->written_paths()).find("--key-file"),
+            std::string::npos);
 }
 
 TEST_F(ReceiverTest, RunStopsAfterCountAndTimesOutWhenNothingArrives) {

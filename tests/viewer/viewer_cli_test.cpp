@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -155,6 +156,41 @@ TEST_F(ViewerCliTest, ReplayedLogIsSavedAsPlyAndPng) {
   }
   EXPECT_TRUE(fs::exists(out + "/frame-000001.canonical.ply"));
   EXPECT_TRUE(fs::exists(out + "/final.png"));
+}
+
+// --key-file: an unusable key file is a usage error naming the file; with a good one, the unsigned
+// meshes and status of the log are refused by reason and nothing is saved.
+TEST_F(ViewerCliTest, KeyFileRefusesUnsignedOutput) {
+  const std::string hex = "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff";
+  const std::string key = dir_ + "/output.key";
+  std::ofstream(key) << hex << "\n";
+  fs::permissions(key, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  const ViewerRun readable = RunViewer("--headless --lcm-url memq:// --key-file " + key);
+  EXPECT_EQ(readable.exit_code, 2) << readable.output;
+  EXPECT_NE(readable.output.find("output key file '" + key + "' is readable by group or others"), std::string::npos)
+      << readable.output;
+  std::ofstream(key, std::ios::trunc) << "camA " << hex << "\n";
+  fs::permissions(key, fs::perms::owner_read | fs::perms::owner_write);
+  const ViewerRun per_source = RunViewer("--headless --lcm-url memq:// --key-file " + key);
+  EXPECT_EQ(per_source.exit_code, 2) << per_source.output;
+  EXPECT_NE(per_source.output.find("has SOURCE_ID KEY lines"), std::string::npos) << per_source.output;
+
+  std::ofstream(key, std::ios::trunc) << hex << "\n";
+  const std::string log = dir_ + "/session.lcm";
+  WriteLog(log);
+  const std::string out = dir_ + "/out";
+  const ViewerRun run = RunViewer("--headless --quiet --lcm-url 'file://" + log + "?speed=0' --save-dir " + out +
+                                  " --key-file " + key + " --timeout 5");
+  EXPECT_EQ(run.exit_code, 0) << run.output;
+  EXPECT_NE(run.output.find("meshes received 5: decoded 0 (live 0, canonical 0, repeats 0), failed 1"),
+            std::string::npos)
+      << run.output;
+  EXPECT_NE(run.output.find("refused under --key-file: meshes 4 unsigned, 0 bad signature, 0 replayed; status 1 "
+                            "unsigned, 0 bad signature, 0 replayed"),
+            std::string::npos)
+      << run.output;
+  EXPECT_NE(run.output.find("last status: none"), std::string::npos) << run.output;
+  EXPECT_NE(run.output.find("files written 0"), std::string::npos) << run.output;
 }
 
 TEST_F(ViewerCliTest, ReplayShorterThanCountFails) {

@@ -12,6 +12,7 @@
 
 #include <lcm/lcm-cpp.hpp>
 
+#include "vd/common/auth.h"
 #include "vd/common/log.h"
 #include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
@@ -37,6 +38,11 @@ int Main(int argc, char** argv) {
     return 0;
   }
   if (options.quiet) vd::SetLogLevel(vd::LogLevel::kWarning);
+  const vd::StatusOr<std::string> output_key = vd::OutputKeyFromFlag(options.key_file);
+  if (!output_key.ok()) {
+    std::fprintf(stderr, "vdeform-viewer: %s\n", output_key.status().message().c_str());
+    return 2;
+  }
   vd::InstallStopSignalHandlers();
   std::atomic<bool>& g_stop = vd::StopFlag();
 
@@ -66,6 +72,7 @@ int Main(int argc, char** argv) {
   receiver_options.request_mesh = !options.no_request;
   receiver_options.sender = "vdeform-viewer:" + std::to_string(getpid());
   receiver_options.channels = *vd::ChannelsOfStream(options.stream);
+  receiver_options.output_key = *output_key;
   // Saving every mesh matters more than latency: ride out ~8 s of a 30 Hz server at 2x our pace.
   if (!options.save_dir.empty()) receiver_options.mesh_queue_capacity = 240;
   vd::StatusOr<std::unique_ptr<vd::MeshReceiver>> created = vd::MeshReceiver::Create(&lcm, receiver_options);
@@ -78,7 +85,8 @@ int Main(int argc, char** argv) {
   VD_LOG_INFO << "listening on " << url << " (" << receiver_options.channels.mesh << ", "
               << receiver_options.channels.status << ")"
               << (receiver.stats().requests_sent > 0 ? "; asked the server for its current meshes" : "")
-              << (options.save_dir.empty() ? "" : "; saving to " + options.save_dir);
+              << (options.save_dir.empty() ? "" : "; saving to " + options.save_dir)
+              << (output_key->empty() ? "" : "; only output signed under the key");
 
   vd::RunOptions run;
   run.count = options.count;

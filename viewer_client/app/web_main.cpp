@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -20,6 +21,7 @@
 #include "vd/common/log.h"
 #include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
+#include "vd/common/output_auth.h"
 #include "vd/common/stop_signal.h"
 #include "vd/viewer/status_text.h"
 #include "vd/viewer/web_options.h"
@@ -87,13 +89,17 @@ class MeshRequester {
 // The LCM side: decodes what arrives just enough to check it, and hands it to the web server.
 class Forwarder {
  public:
-  Forwarder(vd::WebServer* server, MeshRequester* requester) : server_(server), requester_(requester) {}
+  // `output_key` (--key-file): only meshes and status signed under it are forwarded; empty: all.
+  Forwarder(vd::WebServer* server, MeshRequester* requester, std::string output_key)
+      : server_(server), requester_(requester), output_key_(std::move(output_key)) {}
 
   void OnMesh(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
     const std::optional<std::string> stream = vd::StreamOfChannel(channel, "MESH");
-    if (!stream || !Known(*stream)) return;
+    // Without a key a stream is admitted by its name; with one, by its first signed message.
+    if (!stream || (output_key_.empty() && !Known(*stream))) return;
     vd::StatusOr<vdeform::mesh_t> msg = vd::DecodeLcm<vdeform::mesh_t>(buffer->data, buffer->data_size);
     if (!msg.ok()) return Refuse("malformed mesh_t", msg.status(), &meshes_refused_);
+    if (!output_key_.empty() && !(Signed(*stream, *msg, "mesh", &meshes_unsigned_) && Known(*stream))) return;
     vd::StatusOr<std::string> frame = vd::MeshFrame(*msg, *stream);
     if (!frame.ok()) return Refuse("unusable mesh", frame.status(), &meshes_refused_);
     bytes_ += static_cast<int64_t>(frame->size());
@@ -107,10 +113,11 @@ class Forwarder {
 
   void OnStatus(const lcm::ReceiveBuffer* buffer, const std::string& channel) {
     const std::optional<std::string> stream = vd::StreamOfChannel(channel, "STATUS");
-    if (!stream || !Known(*stream)) return;
+    if (!stream || (output_key_.empty() && !Known(*stream))) return;
     vd::StatusOr<vdeform::server_status_t> msg =
         vd::DecodeLcm<vdeform::server_status_t>(buffer->data, buffer->data_size);
     if (!msg.ok()) return Refuse("malformed server_status_t", msg.status(), &status_refused_);
+    if (!output_key_.empty() && !(Signed(*stream, *msg, "status", &status_unsigned_) && Known(*stream))) return;
     ++status_;
     state_ = vd::ServerStateName(msg->state);
     fps_ = msg->fps;
@@ -136,6 +143,9 @@ class Forwarder {
     if (streams_.size() > 1) line += " (" + std::to_string(streams_.size()) + " streams)";
     if (streams_refused_) line += " | " + std::to_string(streams_refused_) + " messages of streams beyond " +
                                   std::to_string(vd::kMaxStreams) + " dropped";
+    if (meshes_unsigned_.total() || status_unsigned_.total())
+      line += " | not signed by the server: meshes " + meshes_unsigned_.ToString() + "; status " +
+              status_unsigned_.ToString();
     return line;
   }
 
@@ -155,12 +165,39 @@ class Forwarder {
 
   void Refuse(const std::string& kind, const vd::Status& status, int64_t* counter) {
     ++*counter;
+    LogOnce(kind, status);
+  }
+
+  void LogOnce(const std::string& kind, const vd::Status& status) {
     if (logged_.insert(kind).second)
       VD_LOG_WARNING << kind << " (counted; further ones are not logged): " << status.ToString();
   }
 
+  // With --key-file: whether msg verifies under the key and is newer than the last one taken of
+  // its stream (each stream is a server run of its own); refusals are counted in *refused. A
+  // stream's verifier is kept from its first message taken on, so forged stream names take
+  // neither a slot (Known) nor memory.
+  template <typename Msg>
+  bool Signed(const std::string& stream, const Msg& msg, const char* what, vd::OutputRefusals* refused) {
+    auto it = verifiers_.find(stream);
+    vd::OutputVerifier fresh(output_key_);
+    const vd::OutputCheck check = (it != verifiers_.end() ? it->second : fresh).Check(msg);
+    refused->Add(check.verdict);
+    if (!check.ok()) {
+      LogOnce(std::string(what) + " refused, " + vd::OutputVerdictName(check.verdict), check.status);
+      return false;
+    }
+    if (it == verifiers_.end() && verifiers_.size() < vd::kMaxStreams) verifiers_.emplace(stream, std::move(fresh));
+    return true;
+  }
+
   vd::WebServer* server_;
   MeshRequester* requester_;
+  // The server's output key (empty: nothing is verified), and per stream what was taken last.
+  std::string output_key_;
+  std::map<std::string, vd::OutputVerifier> verifiers_;
+  // Meshes and status refused under the key, by reason.
+  vd::OutputRefusals meshes_unsigned_, status_unsigned_;
   int64_t meshes_ = 0, meshes_refused_ = 0, status_ = 0, status_refused_ = 0, bytes_ = 0;
   int64_t last_seq_ = -1, last_vertices_ = 0;
   std::string state_;
@@ -200,6 +237,11 @@ int Main(int argc, char** argv) {
     VD_LOG_WARNING << "serving on " << options.server.bind
                    << " without --token-file: anyone who reaches this port sees the reconstruction";
   }
+  const vd::StatusOr<std::string> output_key = vd::OutputKeyFromFlag(options.key_file);
+  if (!output_key.ok()) {
+    std::fprintf(stderr, "vdeform-web: %s\n", output_key.status().message().c_str());
+    return 2;
+  }
   vd::InstallStopSignalHandlers();
   std::atomic<bool>& g_stop = vd::StopFlag();
 
@@ -224,7 +266,7 @@ int Main(int argc, char** argv) {
     return 1;
   }
   vd::WebServer& server = **started;
-  Forwarder forwarder(&server, &requester);
+  Forwarder forwarder(&server, &requester, *output_key);
   // One stream's channels, or every stream's (LCM subscribes by regular expression).
   const std::string mesh_channels = options.stream ? vd::ChannelsOfStream(*options.stream).value().mesh
                                                    : vd::AllStreamsChannelRegex("MESH");

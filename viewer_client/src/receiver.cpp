@@ -63,7 +63,10 @@ StatusOr<std::unique_ptr<MeshReceiver>> MeshReceiver::Create(lcm::LCM* lcm, cons
 }
 
 MeshReceiver::MeshReceiver(lcm::LCM* lcm, const ReceiverOptions& options)
-    : lcm_(lcm), options_(options), last_message_time_(Clock::now()) {}
+    : lcm_(lcm), options_(options), last_message_time_(Clock::now()) {
+  if (!options_.output_key.empty()) verifier_.emplace(options_.output_key);
+  stats_.verifying = verifier_.has_value();
+}
 
 MeshReceiver::~MeshReceiver() {
   if (mesh_subscription_) lcm_->unsubscribe(mesh_subscription_);
@@ -138,7 +141,7 @@ void MeshReceiver::OnStatus(const lcm::ReceiveBuffer* buffer, const std::string&
 }
 
 void MeshReceiver::HandleMesh(const lcm::ReceiveBuffer* buffer) {
-  last_message_time_ = Clock::now();
+  if (!verifier_) last_message_time_ = Clock::now();
   ++stats_.mesh_messages;
   stats_.mesh_bytes += buffer->data_size;
   // Decoded here rather than by LCM's typed handler so malformed bytes are counted, not thrown.
@@ -147,6 +150,13 @@ void MeshReceiver::HandleMesh(const lcm::ReceiveBuffer* buffer) {
     ++stats_.meshes_failed;
     LogOnce("malformed mesh_t", msg.status());
     return;
+  }
+  if (verifier_) {
+    // Checked before the Draco decode: a forger's mesh costs a hash, not a decode.
+    const OutputCheck taken = verifier_->Check(*msg);
+    stats_.meshes_refused = verifier_->mesh_refused();
+    if (!taken.ok()) return LogOnce(std::string("mesh refused, ") + OutputVerdictName(taken.verdict), taken.status);
+    last_message_time_ = Clock::now();
   }
   StatusOr<TriangleMesh> mesh = MessageToMesh(*msg);
   if (!mesh.ok()) {
@@ -192,12 +202,18 @@ void MeshReceiver::HandleMesh(const lcm::ReceiveBuffer* buffer) {
 }
 
 void MeshReceiver::HandleStatus(const lcm::ReceiveBuffer* buffer) {
-  last_message_time_ = Clock::now();
+  if (!verifier_) last_message_time_ = Clock::now();
   StatusOr<vdeform::server_status_t> msg = DecodeLcm<vdeform::server_status_t>(buffer->data, buffer->data_size);
   if (!msg.ok()) {
     ++stats_.status_failed;
     LogOnce("malformed server_status_t", msg.status());
     return;
+  }
+  if (verifier_) {
+    const OutputCheck taken = verifier_->Check(*msg);
+    stats_.status_refused = verifier_->status_refused();
+    if (!taken.ok()) return LogOnce(std::string("status refused, ") + OutputVerdictName(taken.verdict), taken.status);
+    last_message_time_ = Clock::now();
   }
   const bool first = !last_status_.has_value();
   last_status_ = std::move(msg).value();

@@ -46,6 +46,8 @@ std::string StatusLine(const ReceiverStats& stats, const std::optional<vdeform::
   if (stats.last_live_seq >= 0)
     os << " seq " << stats.last_live_seq << " (" << stats.last_live_triangles << " tri)";
   os << " " << FormatBytes(stats.mesh_bytes);
+  const int64_t refused = stats.meshes_refused.total() + stats.status_refused.total();
+  if (refused) os << " refused " << refused << " (not signed by the server)";
   if (!status) {
     os << " | server: no status yet";
     return os.str();
@@ -98,6 +100,8 @@ std::vector<std::string> StatusOverlayLines(const ReceiverStats& stats,
                                    : "none yet";
   if (stats.meshes_failed) mesh += "  failed " + std::to_string(stats.meshes_failed);
   lines.push_back(mesh);
+  const int64_t refused = stats.meshes_refused.total() + stats.status_refused.total();
+  if (refused) lines.push_back("refused " + std::to_string(refused) + " messages not signed by the server");
   std::string colour = std::string("colour ") + ColorModeName(requested);
   if (used != requested) {
     colour += std::string(" (showing ") + ColorModeName(used);
@@ -153,6 +157,9 @@ std::string SummaryText(const ReceiverStats& stats, const std::optional<vdeform:
   } else {
     os << "  last status: none\n";
   }
+  if (stats.verifying)
+    os << "  refused under --key-file: meshes " << stats.meshes_refused.ToString() << "; status "
+       << stats.status_refused.ToString() << "\n";
   if (stats.internal_errors) os << "  handler errors " << stats.internal_errors << "\n";
   if (stats.write_failures) os << "  write failures " << stats.write_failures << "\n";
   os << "  files written " << written_paths.size() << (written_paths.empty() ? "\n" : ":\n");

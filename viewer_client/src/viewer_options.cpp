@@ -21,7 +21,7 @@ At start-up it asks the server for its current meshes (REQUEST_MESH), so it show
 constexpr const char* kEpilogue = R"(SIGINT/SIGTERM end it cleanly: it prints a summary (meshes received/decoded/failed, bytes, last
 seq, last server status, files written) and exits 0. Corrupt messages are counted, logged once
 per kind, and skipped.
-Exit status: 0 done (count reached or signal), 1 time-out or run-time failure, 2 bad flags.
+Exit status: 0 done (count reached or signal), 1 time-out or run-time failure, 2 bad flags or --key-file.
 )";
 
 void Bind(FlagParser* f, ViewerOptions* o) {
@@ -68,6 +68,11 @@ void Bind(FlagParser* f, ViewerOptions* o) {
                "No status line and no informational messages (warnings, errors and the exit summary are still "
                "printed).");
   f->AddSwitch("no-request", &o->no_request, "Do not send REQUEST_MESH at start-up.");
+  f->Add("key-file", &o->key_file,
+         "The server's --output-key-file (one line KEY, 64 hex digits, mode 600): show and save only meshes and "
+         "status signed under it by the running server; unsigned, wrongly signed and replayed ones are counted "
+         "(status line, summary) and dropped. Default: everything is shown.",
+         "FILE");
 }
 
 }  // namespace

@@ -21,7 +21,7 @@ connection alone. Prints a status line (clients, meshes forwarded, bytes, the se
 constexpr const char* kEpilogue = R"(Binding another address than loopback without --token-file prints a warning: anyone who reaches
 the port sees the reconstruction. docs/OPERATIONS.md ("The web viewer") shows a TLS reverse proxy.
 SIGINT/SIGTERM end it cleanly: it closes every connection, prints a summary and exits 0.
-Exit status: 0 done (signal), 1 run-time failure (LCM, the port, the web folder), 2 bad flags.
+Exit status: 0 done (signal), 1 run-time failure (LCM, the port, the web folder), 2 bad flags or key/token file.
 )";
 
 void Bind(FlagParser* f, WebOptions* o) {
@@ -47,6 +47,15 @@ void Bind(FlagParser* f, WebOptions* o) {
                [o](const std::string& v) {
                  if (v.empty()) return InvalidArgument("--token-file needs a file name");
                  o->token_file = v;
+                 return Status::Ok();
+               });
+  f->AddCustom("key-file", "FILE", "",
+               "The server's --output-key-file (one line KEY, 64 hex digits, mode 600): forward only meshes and "
+               "status signed under it by the running server of each stream; unsigned, wrongly signed and replayed "
+               "ones are counted (status line, summary) and dropped. Default: everything is forwarded.",
+               [o](const std::string& v) {
+                 if (v.empty()) return InvalidArgument("--key-file needs a file name");
+                 o->key_file = v;
                  return Status::Ok();
                });
   f->Add("max-clients", &o->server.max_clients,

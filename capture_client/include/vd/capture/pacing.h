@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 
 #include <lcm/lcm-cpp.hpp>
@@ -13,6 +14,7 @@
 #include <vdeform/server_status_t.hpp>
 
 #include "vd/common/messages.h"
+#include "vd/common/output_auth.h"
 #include "vd/common/status.h"
 
 namespace vd {
@@ -32,6 +34,10 @@ struct PacingOptions {
   std::string source_id;
   // Where frames go and acknowledgements come from (--stream NAME; today's names by default).
   StreamChannels channels;
+  // The server's output key (--output-key-file): only status messages that verify under it and
+  // are newer than the last one taken acknowledge a frame, so a forged status naming our frame
+  // cannot make us send on. Empty: every status counts, as before signing.
+  std::string output_key;
   Status Validate() const;
 };
 
@@ -45,6 +51,9 @@ struct PacingStats {
   int64_t last_acked_seq = -1;
   // Status messages that failed to decode (logged once, then only counted).
   int64_t bad_status_messages = 0;
+  // With an output key: status messages ignored because they were unsigned, wrongly signed or
+  // replayed (logged once per reason).
+  OutputRefusals status_refused;
 };
 
 class FramePacer {
@@ -85,6 +94,10 @@ class FramePacer {
   bool scheduled_ = false;
   // The epoch of the frames being sent (set by the first Send): acknowledgements must name it.
   std::optional<int64_t> epoch_;
+  // Checks status messages under options_.output_key; unset without a key.
+  std::optional<OutputVerifier> verifier_;
+  // Refusal reasons already logged.
+  std::set<OutputVerdict> logged_refusals_;
 };
 
 }  // namespace vd

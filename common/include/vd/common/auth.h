@@ -1,14 +1,19 @@
 #pragma once
 // Authenticated messages: HMAC-SHA256 (OpenSSL) over a fixed byte layout of a message's fields.
 // Control commands are signed under the server's control key, frames under their source's frame
-// key; the server checks them when it is given the key files. LCM itself has no authentication.
+// key; the server checks them when it is given the key files. The server's meshes and status are
+// signed under its output key; viewers and lockstep capture clients given it check them. LCM
+// itself has no authentication. Each kind has its own domain tag: a MAC of one kind never
+// verifies as another.
 #include <array>
 #include <cstdint>
 #include <map>
 #include <string>
 
 #include <vdeform/control_t.hpp>
+#include <vdeform/mesh_t.hpp>
 #include <vdeform/rgbd_frame_t.hpp>
+#include <vdeform/server_status_t.hpp>
 
 #include "vd/common/status.h"
 
@@ -43,7 +48,21 @@ Status SignFrame(const std::string& key, vdeform::rgbd_frame_t* msg);
 // Ok when msg->auth is the MAC under key (constant-time comparison); PermissionDenied otherwise,
 // also for an unsigned frame (auth_size 0, refused without hashing the payload).
 Status VerifyFrame(const std::string& key, const vdeform::rgbd_frame_t& msg);
-// A random non-zero epoch for rgbd_frame_t.epoch (OpenSSL's CSPRNG): one per capture process.
+// A mesh's MAC covers a domain tag and every other field (utime, seq, kind, counts, encoding,
+// bounding box, epoch, out_seq, data length), then the payload, streamed where it lies.
+// Fills msg->auth with that MAC; every other field must be final. Internal when OpenSSL fails.
+Status SignMesh(const std::string& key, vdeform::mesh_t* msg);
+// Ok when msg->auth is the MAC under key (constant-time comparison); PermissionDenied otherwise,
+// also for an unsigned mesh (auth_size 0, refused without hashing the payload).
+Status VerifyMesh(const std::string& key, const vdeform::mesh_t& msg);
+// A status's MAC covers a domain tag and the status's LCM encoding with auth emptied: every field.
+// Fills msg->auth; Internal when OpenSSL fails or an array disagrees with its count.
+Status SignStatus(const std::string& key, vdeform::server_status_t* msg);
+// As VerifyMesh, for a status.
+Status VerifyStatus(const std::string& key, const vdeform::server_status_t& msg);
+
+// A random non-zero epoch for rgbd_frame_t.epoch (OpenSSL's CSPRNG): one per capture process;
+// likewise mesh_t.epoch and server_status_t.epoch, one per server process.
 int64_t RandomEpoch();
 
 // The bytes of a secret file (a key, a web token): refuses a missing or non-regular file and one
@@ -63,10 +82,11 @@ class FrameKeys {
   bool per_source() const { return !per_source_.empty(); }
   size_t size() const { return all_.empty() ? per_source_.size() : 1; }
 
-  // The text of a key file (`path` names it in errors). Lines: blank, `# comment`, and either one
-  // line `KEY` (every source) or lines `SOURCE_ID KEY`; KEY is kFrameKeyBytes as hex digits.
-  // Errors name the file and the line.
-  static StatusOr<FrameKeys> Parse(const std::string& text, const std::string& path);
+  // The text of a key file (`path` names it in errors, `what` says what it is). Lines: blank,
+  // `# comment`, and either one line `KEY` (every source) or lines `SOURCE_ID KEY`; KEY is
+  // kFrameKeyBytes as hex digits. Errors name the file and the line.
+  static StatusOr<FrameKeys> Parse(const std::string& text, const std::string& path,
+                                   const std::string& what = "frame key file");
 
  private:
   std::string all_;
@@ -76,5 +96,14 @@ class FrameKeys {
 // Reads and parses a frame key file, with ReadControlKey's checks on the file (exists, regular,
 // private to its owner).
 StatusOr<FrameKeys> ReadFrameKeys(const std::string& path);
+
+// The server's output key (--output-key-file on vdeform-server, -capture, -viewer, -web): a frame
+// key file's format with its single line KEY; SOURCE_ID KEY lines are refused (the output has no
+// source), naming the file.
+StatusOr<std::string> ParseOutputKey(const std::string& text, const std::string& path);
+// Reads and parses it, with ReadFrameKeys' checks on the file.
+StatusOr<std::string> ReadOutputKey(const std::string& path);
+// The key a program's output key flag names: ReadOutputKey(path), or no key (empty) without one.
+StatusOr<std::string> OutputKeyFromFlag(const std::string& path);
 
 }  // namespace vd

@@ -19,6 +19,7 @@
 
 #include "vd/common/mesh.h"
 #include "vd/common/messages.h"
+#include "vd/common/output_auth.h"
 #include "vd/common/status.h"
 #include "vd/viewer/render.h"
 
@@ -44,6 +45,10 @@ struct ReceiverOptions {
   // Mesh messages LCM keeps queued while we render or write (its own default is 30; beyond the
   // capacity it drops). Saving wants a deeper queue than showing: 0 keeps LCM's default.
   int mesh_queue_capacity = 0;
+  // The server's output key (--key-file, ReadOutputKey): only meshes and status that verify under
+  // it and are newer than the last one taken are shown and saved; the others are counted by
+  // reason. Empty: every message is taken, as without signing.
+  std::string output_key;
   Status Validate() const;
 };
 
@@ -77,6 +82,12 @@ struct ReceiverStats {
   int64_t write_failures = 0;
   // Handler failures other than the above (allocation, OpenCV), counted so none goes unseen.
   int64_t internal_errors = 0;
+  // Whether an output key checks what arrives (ReceiverOptions::output_key).
+  bool verifying = false;
+  // Meshes and status messages that decoded but were refused under the output key, by reason
+  // (not counted as decoded or failed above; nothing of them is shown or saved).
+  OutputRefusals meshes_refused;
+  OutputRefusals status_refused;
 };
 
 struct RunOptions {
@@ -126,7 +137,8 @@ class MeshReceiver {
   int64_t version() const { return version_; }
   // Every file written, in order.
   const std::vector<std::string>& written_paths() const { return written_paths_; }
-  // When the last mesh or status message arrived (creation time before the first).
+  // When the last mesh or status message arrived (creation time before the first); with an output
+  // key, the last one taken (forged traffic does not keep a run from timing out).
   Clock::time_point last_message_time() const { return last_message_time_; }
 
  private:
@@ -161,6 +173,8 @@ class MeshReceiver {
   std::vector<std::string> written_paths_;
   std::set<std::string> logged_kinds_;
   Clock::time_point last_message_time_;
+  // Checks meshes and status under options_.output_key; unset without a key.
+  std::optional<OutputVerifier> verifier_;
 };
 
 }  // namespace vd

@@ -33,6 +33,9 @@ struct ViewerOptions {
   ColorMode color_mode = ColorMode::kCanonical;
   // Do not send REQUEST_MESH at start-up (then the first mesh is the next one the server makes).
   bool no_request = false;
+  // The server's --output-key-file: show and save only meshes and status signed under it; empty:
+  // everything on the channels is taken.
+  std::string key_file;
   // --help was given: print ViewerHelpText() and exit 0.
   bool help = false;
   Status Validate() const;

@@ -20,6 +20,9 @@ struct WebOptions {
   WebServerOptions server;
   // A file holding the token every request must carry (mode 600); empty: no token.
   std::string token_file;
+  // The server's output key file (--key-file): only meshes and status signed under it are
+  // forwarded; empty: everything is.
+  std::string key_file;
   // Folder with index.html and the vendored scripts; empty: next to the executable (web/), then
   // ../share/vdeform/web.
   std::string web_root;
