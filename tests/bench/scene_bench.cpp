@@ -43,8 +43,9 @@ int main(int argc, char** argv) {
   std::printf("stages (mean ms):");
   for (int i = 0; i < vd::StageTimes::kCount; ++i) std::printf(" %s %.1f |", vd::StageTimes::kNames[i], e->stage_ms[i]);
   std::printf(" total %.1f ms = %.2f fps\n", e->total_ms, 1000.0 / std::max(1e-9, e->total_ms));
-  std::printf("wall clock per frame (Engine::Process) %.1f ms = %.2f fps\n", e->process_wall_ms,
-              1000.0 / std::max(1e-9, e->process_wall_ms));
+  std::printf("wall clock per frame (Engine::Process) %.1f ms = %.2f fps; CPU %.1f ms (%.2f cores busy)\n",
+              e->process_wall_ms, 1000.0 / std::max(1e-9, e->process_wall_ms), e->process_cpu_ms,
+              e->process_cpu_ms / std::max(1e-9, e->process_wall_ms));
   std::printf("features per frame (mean): %.0f detected, %.0f lifted, %.0f matches; detection + description %.1f ms "
               "(beside the frame's thread), matching %.2f ms, lifting %.2f ms\n",
               e->mean_features, e->mean_lifted, e->mean_matches, e->mean_extract_ms, e->mean_match_ms,

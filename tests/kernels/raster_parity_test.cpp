@@ -50,7 +50,7 @@ TEST(RasterParityTest, DepthIdsAndMapsMatchCpuAndTheAnalyticSphere) {
   DeviceRaster out;
   ASSERT_TRUE(ops.Rasterize(m, T, cam, &out).ok());
   const size_t n = size_t(cam.width) * cam.height;
-  EXPECT_EQ(test::FromDevice(ctx, out.depth_bits, n), ref.depth_bits);
+  EXPECT_EQ(test::FromDevice(ctx, out.depth_id, n), ref.depth_id);
   EXPECT_EQ(test::FromDevice(ctx, out.ids, n), ref.ids);
   EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, out.vertex, n)), test::Flatten(ref.vertex), 1e-6f, 1e-5f));
   EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, out.normal, n)), test::Flatten(ref.normal), 1e-5f, 1e-5f));
@@ -72,6 +72,48 @@ TEST(RasterParityTest, DepthIdsAndMapsMatchCpuAndTheAnalyticSphere) {
   EXPECT_LT(worst, 0.004);
   EXPECT_GT(covered, expected * 0.97);
   EXPECT_LT(covered, expected * 1.06);
+}
+
+// Four triangles over the same pixels: ids 0 and 3 at 1.2 m, 1 and 2 at 1.0 m (1 and 2 the same
+// triangle). The nearest depth wins whatever its id, and among equal depths the smallest id: the
+// packed min(depth << 32 | id) is the two-pass rule (depth first, then id) in one atomic.
+TEST(RasterParityTest, NearestDepthWinsAndTiesGoToTheSmallestId) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  std::vector<vd_float4> pos, nrm;
+  std::vector<int32_t> tris;
+  for (float z : {1.2f, 1.0f, 1.0f, 1.2f}) {
+    const int b = int(pos.size());
+    for (const auto& xy : {std::pair{-0.3f, -0.3f}, std::pair{0.3f, -0.3f}, std::pair{0.f, 0.3f}}) {
+      pos.push_back(VD_F4(xy.first * z, xy.second * z, z, 1.f));
+      nrm.push_back(VD_F4(0.f, 0.f, -1.f, 0.f));
+    }
+    tris.insert(tris.end(), {b, b + 2, b + 1});
+  }
+  const VdCamera cam = test::TestCamera(64, 48);
+  const VdPose T = test::IdentityPose();
+  cpu::RasterMaps ref;
+  cpu::Rasterize(pos.data(), nrm.data(), tris.data(), 4, T, cam, &ref);
+  DeviceMesh m;
+  m.positions = test::ToDevice(ctx, pos);
+  m.normals = test::ToDevice(ctx, nrm);
+  m.triangles = test::ToDevice(ctx, tris);
+  m.num_vertices = pos.size();
+  m.num_triangles = 4;
+  DeviceRaster out;
+  ASSERT_TRUE(ops.Rasterize(m, T, cam, &out).ok());
+  const size_t n = size_t(cam.width) * cam.height;
+  const std::vector<uint32_t> ids = test::FromDevice(ctx, out.ids, n);
+  EXPECT_EQ(ids, ref.ids);
+  int covered = 0;
+  for (size_t i = 0; i < n; ++i) {
+    if (ids[i] == VD_RASTER_EMPTY) continue;
+    ++covered;
+    EXPECT_EQ(ids[i], 1u) << "pixel " << i;
+    EXPECT_NEAR(ref.vertex[i].z, 1.0f, 1e-5f);
+  }
+  EXPECT_GT(covered, 100);
 }
 
 }  // namespace

@@ -1,9 +1,10 @@
-/* Rasterisation of an indexed triangle mesh into depth, triangle-id, vertex and normal buffers.
- * Two passes per triangle keep it deterministic with 32-bit atomics only: the first keeps the
- * nearest depth per pixel (positive floats order like their bit patterns), the second writes the
- * smallest id among the triangles that produced exactly that depth. A per-pixel pass then
- * interpolates position and normal with perspective-correct barycentrics. Coverage, depth and
- * barycentrics come from raster_math.h: pixel centres at integer coordinates, top-left rule. */
+/* Rasterisation of an indexed triangle mesh into triangle-id, vertex and normal buffers.
+ * One pass per triangle keeps, per pixel, the minimum of (depth bits << 32 | triangle id) with a
+ * 64-bit atomic: the nearest depth (positive floats order like their bit patterns) and, among the
+ * triangles that produced exactly that depth, the smallest id; deterministic whatever the order.
+ * A per-pixel pass then interpolates position and normal with perspective-correct barycentrics.
+ * Coverage, depth and barycentrics come from raster_math.h: pixel centres at integer
+ * coordinates, top-left rule. */
 #ifndef VD_RASTER_H
 #define VD_RASTER_H
 
@@ -11,6 +12,8 @@
 #include "vd_types.h"
 
 #define VD_RASTER_EMPTY 0xFFFFFFFFu
+/* An empty pixel of the packed depth-and-id buffer. */
+#define VD_RASTER_EMPTY64 0xFFFFFFFFFFFFFFFFul
 /* Triangles nearer than this are skipped (they would project to huge, meaningless areas). */
 #define VD_RASTER_NEAR 0.05f
 /* A triangle covering more pixels than this bounding-box area is skipped as degenerate. */
@@ -52,38 +55,30 @@ VD_INLINE float vd_raster_pixel_depth(VdRasterTri r, int x, int y) {
   return 1.0f / vd_raster_inv_depth(r, w0, w1, w2);
 }
 
-/* Pass 1: nearest depth (as uint bits) per pixel. */
-VD_INLINE void vd_raster_depth_triangle(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const int* tris, int t, VdPose T,
-                                        VdCamera cam, VD_GLOBAL vd_uint* depth_bits) {
+/* The one pass over triangles: per covered pixel, min(depth bits << 32 | t). */
+VD_INLINE void vd_raster_triangle(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const int* tris, int t, VdPose T,
+                                  VdCamera cam, VD_GLOBAL vd_ulong* depth_id) {
   VdRasterTri r = vd_raster_setup(pos, tris, t, T, cam);
   for (int y = r.box.y0; y <= r.box.y1; ++y) {
     for (int x = r.box.x0; x <= r.box.x1; ++x) {
       const float z = vd_raster_pixel_depth(r, x, y);
-      if (z > 0.0f) VD_ATOMIC_MIN_U32(&depth_bits[y * cam.width + x], VD_FLOAT_AS_UINT(z));
+      if (z > 0.0f)
+        VD_ATOMIC_MIN_U64(&depth_id[y * cam.width + x], ((vd_ulong)VD_FLOAT_AS_UINT(z) << 32) | (vd_ulong)(vd_uint)t);
     }
   }
 }
 
-/* Pass 2: smallest triangle id that produced the stored depth. */
-VD_INLINE void vd_raster_id_triangle(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const int* tris, int t, VdPose T,
-                                     VdCamera cam, VD_GLOBAL const vd_uint* depth_bits, VD_GLOBAL vd_uint* ids) {
-  VdRasterTri r = vd_raster_setup(pos, tris, t, T, cam);
-  for (int y = r.box.y0; y <= r.box.y1; ++y) {
-    for (int x = r.box.x0; x <= r.box.x1; ++x) {
-      const float z = vd_raster_pixel_depth(r, x, y);
-      const int pix = y * cam.width + x;
-      if (z > 0.0f && VD_FLOAT_AS_UINT(z) == depth_bits[pix]) VD_ATOMIC_MIN_U32(&ids[pix], (vd_uint)t);
-    }
-  }
+/* The id part of a packed pixel: VD_RASTER_EMPTY where nothing covered it. */
+VD_INLINE vd_uint vd_raster_id(vd_ulong depth_id) {
+  return depth_id == VD_RASTER_EMPTY64 ? VD_RASTER_EMPTY : (vd_uint)(depth_id & 0xFFFFFFFFul);
 }
 
-/* Pass 3 for one pixel: camera-space position and normal (w = 1 valid, 0 empty) and the
- * perspective-correct barycentrics (w = 1 valid; the triangle is ids[pix]), used to lift points. */
+/* Per pixel, after the triangle pass: camera-space position and normal (w = 1 valid, 0 empty) and
+ * the perspective-correct barycentrics (w = 1 valid; the triangle is t, VD_RASTER_EMPTY for none),
+ * used to pair and to lift points. */
 VD_INLINE void vd_raster_resolve_pixel(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const vd_float4* nrm,
-                                       VD_GLOBAL const int* tris, VdPose T, VdCamera cam, int pix,
-                                       VD_GLOBAL const vd_uint* ids, vd_float4* vertex, vd_float4* normal,
-                                       vd_float4* bary) {
-  vd_uint t = ids[pix];
+                                       VD_GLOBAL const int* tris, VdPose T, VdCamera cam, int pix, vd_uint t,
+                                       vd_float4* vertex, vd_float4* normal, vd_float4* bary) {
   *vertex = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   *normal = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   *bary = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);

@@ -17,10 +17,13 @@
 typedef float4 vd_float4;
 typedef uint vd_uint;
 typedef long vd_long;
+typedef ulong vd_ulong;
 typedef uchar vd_uchar;
 typedef ushort vd_ushort;
 #define VD_F4(x, y, z, w) ((float4)((x), (y), (z), (w)))
 #define VD_ATOMIC_MIN_U32(ptr, v) atomic_min((ptr), (v))
+/* cl_khr_int64_extended_atomics (the host checks for it, ocl.cpp); enabled by the kernel file. */
+#define VD_ATOMIC_MIN_U64(ptr, v) atom_min((ptr), (v))
 #define VD_FLOAT_AS_UINT(f) as_uint(f)
 
 #else
@@ -35,6 +38,7 @@ typedef ushort vd_ushort;
 #define VD_UNROLL _Pragma("GCC unroll 64")
 typedef uint32_t vd_uint;
 typedef int64_t vd_long;
+typedef uint64_t vd_ulong;
 typedef uint8_t vd_uchar;
 typedef uint16_t vd_ushort;
 
@@ -52,11 +56,14 @@ inline vd_float4 operator/(vd_float4 a, float s) { return {a.x / s, a.y / s, a.z
 inline vd_float4& operator+=(vd_float4& a, vd_float4 b) { a = a + b; return a; }
 inline vd_uint VD_FLOAT_AS_UINT(float f) { vd_uint u; memcpy(&u, &f, 4); return u; }
 /* The host reference runs single-threaded or with OpenMP; a relaxed atomic keeps it race-free. */
-inline void VD_ATOMIC_MIN_U32(vd_uint* p, vd_uint v) {
-  vd_uint cur = __atomic_load_n(p, __ATOMIC_RELAXED);
+template <typename U>
+inline void VdAtomicMin(U* p, U v) {
+  U cur = __atomic_load_n(p, __ATOMIC_RELAXED);
   while (v < cur && !__atomic_compare_exchange_n(p, &cur, v, true, __ATOMIC_RELAXED, __ATOMIC_RELAXED)) {
   }
 }
+inline void VD_ATOMIC_MIN_U32(vd_uint* p, vd_uint v) { VdAtomicMin(p, v); }
+inline void VD_ATOMIC_MIN_U64(vd_ulong* p, vd_ulong v) { VdAtomicMin(p, v); }
 #endif
 
 /* Lanes: a kernel written over vd_lf / vd_li runs VD_LANES consecutive items per work item, as

@@ -194,21 +194,20 @@ void LevelProlongate(const std::vector<int32_t>& fine_list, VdVolume fine, int s
 void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32_t* triangles, int num_triangles,
                VdPose world_to_cam, VdCamera cam, RasterMaps* out) {
   const int n = cam.width * cam.height;
-  out->depth_bits.assign(n, VD_RASTER_EMPTY);
-  out->ids.assign(n, VD_RASTER_EMPTY);
+  out->depth_id.assign(n, VD_RASTER_EMPTY64);
+  out->ids.resize(n);
   out->vertex.resize(n);
   out->normal.resize(n);
   out->bary.resize(n);
 #pragma omp parallel for schedule(dynamic, 256)
   for (int t = 0; t < num_triangles; ++t)
-    vd_raster_depth_triangle(positions, triangles, t, world_to_cam, cam, out->depth_bits.data());
-#pragma omp parallel for schedule(dynamic, 256)
-  for (int t = 0; t < num_triangles; ++t)
-    vd_raster_id_triangle(positions, triangles, t, world_to_cam, cam, out->depth_bits.data(), out->ids.data());
+    vd_raster_triangle(positions, triangles, t, world_to_cam, cam, out->depth_id.data());
 #pragma omp parallel for schedule(static)
-  for (int i = 0; i < n; ++i)
-    vd_raster_resolve_pixel(positions, normals, triangles, world_to_cam, cam, i, out->ids.data(), &out->vertex[i],
+  for (int i = 0; i < n; ++i) {
+    out->ids[i] = vd_raster_id(out->depth_id[i]);
+    vd_raster_resolve_pixel(positions, normals, triangles, world_to_cam, cam, i, out->ids[i], &out->vertex[i],
                             &out->normal[i], &out->bary[i]);
+  }
 }
 
 void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_float4* obs_n,

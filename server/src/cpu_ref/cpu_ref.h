@@ -62,7 +62,7 @@ void LevelProlongate(const std::vector<int32_t>& fine_list, VdVolume fine, int s
                      VdVolume coarse, const vd_float4* x_c, const vd_float4* x0_c, vd_float4* x_f);
 
 struct RasterMaps {
-  std::vector<uint32_t> depth_bits;
+  std::vector<uint64_t> depth_id;
   std::vector<uint32_t> ids;
   std::vector<vd_float4> vertex;
   std::vector<vd_float4> normal;

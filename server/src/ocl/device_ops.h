@@ -42,7 +42,8 @@ struct DeviceMesh {
 
 struct DeviceRaster {
   VdCamera cam{};
-  ocl::Buffer<uint32_t> depth_bits;
+  // Per pixel, min(depth bits << 32 | triangle id) of the triangles covering it (shared/raster.h).
+  ocl::Buffer<uint64_t> depth_id;
   ocl::Buffer<uint32_t> ids;
   ocl::Buffer<vd_float4> vertex;
   ocl::Buffer<vd_float4> normal;

@@ -262,6 +262,13 @@ StatusOr<std::unique_ptr<Context>> Context::Create(const std::string& spec) {
     }
   }
   if (!chosen) return NotFound("no OpenCL device matches --device '" + spec + "'; available:\n" + DescribeDevices(devices));
+  // The rasteriser keeps depth and triangle id per pixel with one 64-bit atomic min (raster.cl).
+  const std::string extensions = DeviceString(chosen->id, CL_DEVICE_EXTENSIONS);
+  for (const char* needed : {"cl_khr_int64_base_atomics", "cl_khr_int64_extended_atomics"})
+    if (extensions.find(needed) == std::string::npos)
+      return Unavailable("OpenCL device '" + chosen->device_name + "' lacks " + needed +
+                         " (64-bit atomics), which vdeform's rasteriser needs; choose another with --device:\n" +
+                         DescribeDevices(devices));
 
   std::unique_ptr<Context> ctx(new Context());
   ctx->device_ = *chosen;

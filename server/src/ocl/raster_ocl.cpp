@@ -8,19 +8,16 @@ namespace vd {
 Status DeviceOps::Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out) {
   const size_t n = static_cast<size_t>(cam.width) * cam.height;
   out->cam = cam;
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->depth_bits, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->depth_id, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->ids, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->vertex, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->normal, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->bary, n));
-  VD_RETURN_IF_ERROR(ctx_->Fill(out->depth_bits, VD_RASTER_EMPTY, n));
-  VD_RETURN_IF_ERROR(ctx_->Fill(out->ids, VD_RASTER_EMPTY, n));
-  VD_RETURN_IF_ERROR(ocl::kRasterDepthPass(*ctx_, mesh.num_triangles, mesh.positions, mesh.triangles, world_to_cam, cam,
-                                           out->depth_bits));
-  VD_RETURN_IF_ERROR(ocl::kRasterIdPass(*ctx_, mesh.num_triangles, mesh.positions, mesh.triangles, world_to_cam, cam,
-                                        out->depth_bits, out->ids));
-  return ocl::kRasterResolve(*ctx_, n, mesh.positions, mesh.normals, mesh.triangles, world_to_cam, cam, out->ids,
-                             out->vertex, out->normal, out->bary);
+  VD_RETURN_IF_ERROR(ctx_->Fill(out->depth_id, uint64_t{VD_RASTER_EMPTY64}, n));
+  VD_RETURN_IF_ERROR(ocl::kRasterPass(*ctx_, mesh.num_triangles, mesh.positions, mesh.triangles, world_to_cam, cam,
+                                      out->depth_id));
+  return ocl::kRasterResolve(*ctx_, n, mesh.positions, mesh.normals, mesh.triangles, world_to_cam, cam,
+                             out->depth_id, out->ids, out->vertex, out->normal, out->bary);
 }
 
 }  // namespace vd
