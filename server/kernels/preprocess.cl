@@ -34,6 +34,11 @@ __kernel void vd_bilateral(__global const float* in, __global float* out, int wi
   }
   vd_lf d0 = vd_lload(v);
   int full = base + VD_LANES <= vd_items;
+  /* No valid centre among the lanes (background, holes): every output is 0, as below; no taps. */
+  if (full && !any(d0 > 0.0f)) {
+    vd_lstore((vd_lf)0.0f, out + base);
+    return;
+  }
   int row = ys[0];
   int contiguous = full && ys[VD_LANES - 1] == row && xs[0] - radius >= 0 && xs[VD_LANES - 1] + radius < width;
   vd_lf sum = 0.0f, wsum = 0.0f;
