@@ -9,12 +9,14 @@
 #include <malloc.h>
 #include <deque>
 #include <map>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <thread>
 #include <vector>
 
 #include "core/checkpoint.h"
+#include "prefetch_policy.h"
 #include "snapshot.h"
 #include "stats.h"
 #include "vd/common/auth.h"
@@ -75,8 +77,9 @@ class Node::Impl {
     }
     if (mailbox_) ++dropped_;
     mailbox_ = std::move(d.frame);
-    // Feature detection starts now, beside the frame the worker may be solving.
-    engine_->Prefetch(*mailbox_);
+    // Feature detection starts now, beside the frame the worker is solving, when this frame is
+    // likely the one the worker takes next (PrefetchPolicy).
+    if (prefetch_.OnArrival(Clock::now())) engine_->Prefetch(*mailbox_);
     cv_.notify_one();
   }
 
@@ -143,6 +146,7 @@ class Node::Impl {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       frame.swap(mailbox_);
+      if (frame) prefetch_.WorkerStarted(Clock::now());
       reset = reset_requested_;
       reset_requested_ = false;
       snapshots.swap(snapshot_requests_);
@@ -152,13 +156,18 @@ class Node::Impl {
       std::lock_guard<std::mutex> lock(mutex_);
       last_live_.reset();
       last_canonical_.reset();
+      canonical_pending_.reset();
       model_frames_ = 0;
       state_ = vdeform::server_status_t::STATE_IDLE;
       message_ = "reset";
       VD_LOG_INFO << "model reset";
     }
     for (const auto& name : snapshots) Snapshot(name);
-    if (frame) Process(*frame);
+    if (frame) {
+      Process(*frame);
+      std::lock_guard<std::mutex> lock(mutex_);
+      prefetch_.WorkerFinished(Clock::now());
+    }
     return frame.has_value();
   }
 
@@ -196,12 +205,13 @@ class Node::Impl {
     model_frames_ = r.state->frames_fused;
     last_processed_seq_ = r.state->last_seq;
     last_source_id_ = r.state->source_id;
-    KeepMeshes(meshes, r.state->last_seq);
+    const size_t triangles = meshes.live_mesh.num_triangles();
+    KeepMeshes(EncodeLive(&meshes, r.state->last_seq), &meshes, r.state->last_seq);
     state_ = vdeform::server_status_t::STATE_TRACKING;
     message_ = "resumed";
     checkpoint_message_ = "resumed from " + r.loaded_path + (problems.empty() ? "" : " after refusing: " + problems);
     VD_LOG_INFO << "resumed " << model_frames_ << " fused frames from " << r.loaded_path << " ("
-                << meshes.live_mesh.num_triangles() << " triangles)";
+                << triangles << " triangles)";
     return problems.empty();
   }
 
@@ -331,24 +341,44 @@ class Node::Impl {
   }
 
   // Encodes the meshes of `result` for publishing; called with mutex_ held.
-  void KeepMeshes(const FrameResult& result, int64_t seq) {
+  // The live mesh is encoded for every frame (outside mutex_: Draco takes ~20 ms on a 50k-vertex
+  // mesh); the canonical one only when it is published or saved (EncodeCanonical), at most once a
+  // second, instead of every frame.
+  static std::optional<vdeform::mesh_t> EncodeLive(FrameResult* result, int64_t seq) {
     // Every live mesh carries its vertices' canonical positions (same vertices, same order), so
     // viewers colour by canonical position on every frame, not only when a canonical mesh came.
-    TriangleMesh live_mesh = result.live_mesh;
-    if (result.canonical_mesh.positions.size() == live_mesh.positions.size())
-      live_mesh.canonical = result.canonical_mesh.positions;
+    TriangleMesh& live_mesh = result->live_mesh;
+    if (result->canonical_mesh.positions.size() == live_mesh.positions.size())
+      live_mesh.canonical = result->canonical_mesh.positions;
     auto live = MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE);
-    auto canonical = MeshToMessage(result.canonical_mesh, NowUs(), seq, vdeform::mesh_t::KIND_CANONICAL);
-    if (live.ok()) last_live_ = std::move(live).value();
-    else VD_LOG_WARNING << "cannot encode live mesh: " << live.status().ToString();
-    if (canonical.ok()) last_canonical_ = std::move(canonical).value();
+    if (live.ok()) return std::move(live).value();
+    VD_LOG_WARNING << "cannot encode live mesh: " << live.status().ToString();
+    return std::nullopt;
+  }
+
+  // A frame's meshes become the ones published and saved (mutex_ held).
+  void KeepMeshes(std::optional<vdeform::mesh_t> live, FrameResult* result, int64_t seq) {
+    if (live) last_live_ = std::move(live);
+    canonical_pending_ = std::make_shared<const TriangleMesh>(std::move(result->canonical_mesh));
+    canonical_pending_seq_ = seq;
     canonical_changed_ = true;
+  }
+
+  // Encodes the newest canonical mesh if it is not yet (mutex_ held).
+  void EncodeCanonical() {
+    if (!canonical_pending_) return;
+    auto canonical = MeshToMessage(*canonical_pending_, NowUs(), canonical_pending_seq_, vdeform::mesh_t::KIND_CANONICAL);
+    if (canonical.ok()) last_canonical_ = std::move(canonical).value();
+    else VD_LOG_WARNING << "cannot encode canonical mesh: " << canonical.status().ToString();
+    canonical_pending_.reset();
   }
 
   void Process(const RgbdFrame& frame) {
     const auto t0 = Clock::now();
     auto result = engine_->Process(frame);
     const double ms = MsSince(t0);
+    std::optional<vdeform::mesh_t> live;
+    if (result.ok()) live = EncodeLive(&*result, frame.seq);
     std::unique_lock<std::mutex> lock(mutex_);
     if (!result.ok()) {
       // Bad input the validation could not see (e.g. a size change): counted, the model kept.
@@ -376,7 +406,7 @@ class Node::Impl {
       energy_final_ = float(result->energy_final);
     }
     active_voxels_ = result->active_voxels;
-    KeepMeshes(*result, frame.seq);
+    KeepMeshes(std::move(live), &*result, frame.seq);
     lock.unlock();
     PublishMeshes(false);
     RecordLatency(frame.utime);
@@ -396,6 +426,7 @@ class Node::Impl {
     std::lock_guard<std::mutex> lock(mutex_);
     if (last_live_) PublishOutput(channels_.mesh, &*last_live_, &SignMesh);
     const auto now = Clock::now();
+    if (force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1))) EncodeCanonical();
     if (last_canonical_ && (force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1)))) {
       PublishOutput(channels_.mesh, &*last_canonical_, &SignMesh);
       last_canonical_sent_ = now;
@@ -443,6 +474,7 @@ class Node::Impl {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       live = last_live_;
+      EncodeCanonical();
       canonical = last_canonical_;
     }
     Status s = Status::Ok();
@@ -479,6 +511,8 @@ class Node::Impl {
   std::condition_variable cv_;
   // One slot: the newest accepted frame not yet processed.
   std::optional<RgbdFrame> mailbox_;
+  // Whether an arriving frame's features are detected at once or when the worker takes it.
+  PrefetchPolicy prefetch_;
   // Control commands wait for the worker, which owns the engine.
   bool reset_requested_ = false;
   std::vector<std::string> snapshot_requests_;
@@ -532,6 +566,9 @@ class Node::Impl {
   int64_t active_voxels_ = 0;
   // Encoded once per frame, republished on REQUEST_MESH to viewers that join late.
   std::optional<vdeform::mesh_t> last_live_, last_canonical_;
+  // The newest canonical mesh while last_canonical_ does not hold it yet, and its frame.
+  std::shared_ptr<const TriangleMesh> canonical_pending_;
+  int64_t canonical_pending_seq_ = 0;
   // The canonical mesh is large: sent at most once a second, and only when it changed.
   bool canonical_changed_ = false;
   Clock::time_point last_canonical_sent_{};

@@ -234,8 +234,15 @@ void AsyncFeatureExtractor::Configure(const FeatureParams& params, float min_dep
 void AsyncFeatureExtractor::Prefetch(const RgbdFrame& frame) {
   std::lock_guard<std::mutex> lock(mu_);
   if (pending_.count(frame.seq)) return;
-  // At most a few frames ahead; older requests nobody took are dropped (their threads finish).
-  while (pending_.size() >= 4) pending_.erase(pending_.begin());
+  // At most a few frames ahead; older requests nobody took are dropped. Their threads finish on
+  // their own: a finished one is released here, a running one is kept aside until it is.
+  retired_.erase(std::remove_if(retired_.begin(), retired_.end(),
+                                [](const auto& f) { return f.wait_for(std::chrono::seconds(0)) == std::future_status::ready; }),
+                 retired_.end());
+  while (pending_.size() >= 4) {
+    retired_.push_back(std::move(pending_.begin()->second));
+    pending_.erase(pending_.begin());
+  }
   RgbdFrame copy = frame;
   copy.color = frame.color.clone();
   copy.depth = frame.depth.clone();
@@ -262,11 +269,14 @@ StatusOr<FrameFeatures> AsyncFeatureExtractor::Take(const RgbdFrame& frame) {
 
 void AsyncFeatureExtractor::Clear() {
   std::map<int64_t, std::shared_future<StatusOr<FrameFeatures>>> drop;
+  std::vector<std::shared_future<StatusOr<FrameFeatures>>> retired;
   {
     std::lock_guard<std::mutex> lock(mu_);
     drop.swap(pending_);
+    retired.swap(retired_);
   }
   for (auto& [seq, fut] : drop) fut.wait();
+  for (auto& fut : retired) fut.wait();
 }
 
 void FeatureHistory::Add(FrameFeatures f, int keyframe_interval) {

@@ -112,6 +112,9 @@ class AsyncFeatureExtractor {
   float min_depth_ = 0.f, max_depth_ = 0.f;
   std::mutex mu_;
   std::map<int64_t, std::shared_future<StatusOr<FrameFeatures>>> pending_;
+  // Requests dropped while their detection still runs: destroying the last future of std::async
+  // waits for it, which would stall the receive thread that called Prefetch. Kept until ready.
+  std::vector<std::shared_future<StatusOr<FrameFeatures>>> retired_;
 };
 
 // Every frame's lifted features and the candidate choice of the history policy.
