@@ -109,6 +109,8 @@ class Node::Impl {
   Status Serve(const std::atomic<bool>* stop) {
     // The worker also stops when receiving fails, which *stop (the caller's) does not say.
     std::atomic<bool> done{false};
+    async_output_ = true;
+    std::thread output([&] { OutputLoop(); });
     std::thread worker([&] { Work(&done); });
     Status status = Status::Ok();
     while (!*stop) {
@@ -123,6 +125,13 @@ class Node::Impl {
     }
     done = true;
     worker.join();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      output_stop_ = true;
+    }
+    output_cv_.notify_all();
+    output.join();
+    async_output_ = false;
     MaybeCheckpoint(CheckpointTrigger::kShutdown);
     return status;
   }
@@ -203,7 +212,7 @@ class Node::Impl {
       return false;
     }
     model_frames_ = r.state->frames_fused;
-    last_processed_seq_ = r.state->last_seq;
+    last_processed_seq_ = published_seq_ = r.state->last_seq;
     last_source_id_ = r.state->source_id;
     const size_t triangles = meshes.live_mesh.num_triangles();
     KeepMeshes(EncodeLive(&meshes, r.state->last_seq), &meshes, r.state->last_seq);
@@ -302,7 +311,7 @@ class Node::Impl {
       st.model_frames = model_frames_;
       st.checkpoint_utime = checkpoint_utime_;
       st.checkpoint_message = checkpoint_message_;
-      st.last_processed_seq = last_processed_seq_;
+      st.last_processed_seq = published_seq_;
       st.last_source_id = last_source_id_;
       st.last_epoch = last_epoch_;
       for (int s = 0; s < StageTimes::kCount; ++s) {
@@ -377,8 +386,6 @@ class Node::Impl {
     const auto t0 = Clock::now();
     auto result = engine_->Process(frame);
     const double ms = MsSince(t0);
-    std::optional<vdeform::mesh_t> live;
-    if (result.ok()) live = EncodeLive(&*result, frame.seq);
     std::unique_lock<std::mutex> lock(mutex_);
     if (!result.ok()) {
       // Bad input the validation could not see (e.g. a size change): counted, the model kept.
@@ -406,11 +413,50 @@ class Node::Impl {
       energy_final_ = float(result->energy_final);
     }
     active_voxels_ = result->active_voxels;
-    KeepMeshes(std::move(live), &*result, frame.seq);
+    OutputJob job{std::move(result).value(), frame.seq, frame.utime};
+    if (async_output_) {
+      // The output thread encodes and publishes while this thread goes on with the next frame;
+      // at most one result waits for it, so none is skipped and memory stays bounded.
+      output_cv_.wait(lock, [&] { return !output_slot_.has_value(); });
+      output_slot_ = std::move(job);
+      output_cv_.notify_all();
+      return;
+    }
     lock.unlock();
+    Output(std::move(job));
+  }
+
+  // A processed frame's output: its meshes encoded, kept and published, then its status (which
+  // names the frame only once its mesh is out, so a lockstep capture never outruns the meshes).
+  struct OutputJob {
+    FrameResult result;
+    int64_t seq = 0;
+    int64_t capture_utime = 0;
+  };
+  void Output(OutputJob job) {
+    std::optional<vdeform::mesh_t> live = EncodeLive(&job.result, job.seq);
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      KeepMeshes(std::move(live), &job.result, job.seq);
+      published_seq_ = job.seq;
+    }
     PublishMeshes(false);
-    RecordLatency(frame.utime);
+    RecordLatency(job.capture_utime);
     PublishStatus();
+  }
+
+  // Serve's output thread: runs Output for each job until stopped with nothing left.
+  void OutputLoop() {
+    for (;;) {
+      std::unique_lock<std::mutex> lock(mutex_);
+      output_cv_.wait(lock, [&] { return output_slot_.has_value() || output_stop_; });
+      if (!output_slot_) return;
+      OutputJob job = std::move(*output_slot_);
+      output_slot_.reset();
+      output_cv_.notify_all();
+      lock.unlock();
+      Output(std::move(job));
+    }
   }
 
   // Capture to mesh publication; frames without a capture time (utime 0) are not counted.
@@ -542,6 +588,14 @@ class Node::Impl {
   std::map<std::string, int64_t> reject_counts_;
   // The newest frame in the model; a resumed model continues the sequence.
   int64_t last_processed_seq_ = -1;
+  // The last frame whose mesh has been published: what the status names as processed.
+  int64_t published_seq_ = -1;
+  // Serve hands each result to its output thread (RunOnce alone publishes inline): the slot, its
+  // wake-up, and the stop once the worker has ended. async_output_ is set before the threads start.
+  std::optional<OutputJob> output_slot_;
+  std::condition_variable output_cv_;
+  bool output_stop_ = false;
+  bool async_output_ = false;
   std::string last_source_id_;
   // The run of the source of the newest frame (0 after a resume: the checkpoint does not keep it).
   int64_t last_epoch_ = 0;
