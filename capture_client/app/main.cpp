@@ -76,6 +76,10 @@ void Bind(FlagParser* f, Args* a) {
   f->Add("stride", &a->source_options.stride, "Send every N-th frame", "N");
   f->AddSwitch("loop", &a->source_options.loop, "Restart at --start after the last frame (endless)");
   f->AddNegation("no-noise", &a->source_options.synthetic_noise, "Synthetic scenes without Kinect-like depth noise");
+  f->Add("frames", &a->source_options.synthetic_frames,
+         "Synthetic scenes: frames in one pass of the motion, also with --write (0 = the scene's own, 60; more = a "
+         "long take of the same motion)",
+         "N");
   f->Add("read-timeout", &a->source_options.read_timeout_s, "Give up on a sensor/recording read after S seconds", "S");
   f->Section("Rate");
   f->AddCustom("fps", "N", "the source's own rate", "Send at N frames per second", [a](const std::string& v) {
@@ -166,7 +170,9 @@ Status Finish(const FlagParser& flags, Args* args) {
 int WriteDataset(const Args& a) {
   SyntheticOptions options;
   options.noise = a.source_options.synthetic_noise;
-  if (a.source_options.count > 0) {
+  if (a.source_options.synthetic_frames > 0) {
+    options.num_frames = static_cast<int>(a.source_options.synthetic_frames);
+  } else if (a.source_options.count > 0) {
     if (a.source_options.count > 1000000) {
       std::fprintf(stderr, "vdeform-capture: error: --count %lld is too many frames to write\n",
                    static_cast<long long>(a.source_options.count));

@@ -21,6 +21,8 @@ Status SourceOptions::Validate() const {
   if (start < 0) return bad("start", std::to_string(start), "start >= 0");
   if (count < -1 || count == 0) return bad("count", std::to_string(count), "count > 0 or -1 (all)");
   if (stride < 1 || stride > 10000) return bad("stride", std::to_string(stride), "1 <= stride <= 10000");
+  if (synthetic_frames < 0 || synthetic_frames > 1000000)
+    return bad("frames", std::to_string(synthetic_frames), "0 <= frames <= 1000000 (0: the scene's own)");
   if (!std::isfinite(read_timeout_s) || read_timeout_s <= 0.0 || read_timeout_s > 3600.0)
     return bad("read_timeout_s", std::to_string(read_timeout_s), "0 < read_timeout_s <= 3600");
   return Status::Ok();

@@ -58,6 +58,7 @@ StatusOr<std::unique_ptr<FrameSource>> OpenSyntheticSource(const std::string& na
   VD_RETURN_IF_ERROR(options.Validate());
   SyntheticOptions synthetic;
   synthetic.noise = options.synthetic_noise;
+  if (options.synthetic_frames > 0) synthetic.num_frames = static_cast<int>(options.synthetic_frames);
   VD_ASSIGN_OR_RETURN(std::unique_ptr<SyntheticScene> scene, MakeSyntheticScene(name, synthetic));
   VD_ASSIGN_OR_RETURN(FrameSelection selection,
                       FrameSelection::Make(scene->num_frames(), options, "synthetic:" + name));

@@ -97,6 +97,7 @@ SourceOptions ToSourceOptions(const ServerOptions& options) {
   s.start = options.start;
   s.count = options.count;
   s.stride = int(options.stride);
+  s.synthetic_frames = options.synthetic_frames;
   return s;
 }
 

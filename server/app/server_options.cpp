@@ -14,6 +14,10 @@ void ServerOptions::Register(FlagParser* f) {
   f->Add("count", &count, "Process at most N frames (-1 = all)", "N");
   f->Add("start", &start, "First frame index of the source", "N");
   f->Add("stride", &stride, "Use every n-th frame of the source", "N");
+  f->Add("frames", &synthetic_frames,
+         "synthetic: inputs: frames in one pass of the motion (0 = the scene's own, 60; more = a long take of the "
+         "same motion)",
+         "N");
   f->Add("save-dir", &save_dir,
          "Write frame-%06d.mesh.ply (live, camera coordinates), frame-%06d.canonical.ply and frame-%06d.pose.txt "
          "(camera-to-world) per frame, numbered by the frame's index in the source (--start 3 --stride 2: 3, 5, 7, "

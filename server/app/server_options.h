@@ -19,6 +19,8 @@ struct ServerOptions {
   int64_t count = -1;
   int64_t start = 0;
   int64_t stride = 1;
+  // synthetic: inputs: frames in one pass of the motion (0: the scene's own).
+  int64_t synthetic_frames = 0;
   std::string save_dir;
   std::string stats_json;
   // OpenCL device: index or name substring; empty = first GPU, else first CPU device.

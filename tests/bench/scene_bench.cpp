@@ -11,13 +11,14 @@
 int main(int argc, char** argv) {
   vd::ServerOptions options;
   std::string scene = "tube";
-  int64_t frames = 60, stride = 1;
+  int64_t stride = 1, report_every = 0;
   bool verbose = false;
   vd::FlagParser flags("vd_scene_bench: the engine on a synthetic scene against ground truth.\n"
                        "  vd_scene_bench --scene NAME [engine flags as for vdeform-server]");
   options.Register(&flags);
   flags.Add("scene", &scene, "Synthetic scene: tube, cloth or rigid");
-  flags.Add("frames", &frames, "Frames in one pass of the scene's motion");
+  flags.Add("report-every", &report_every,
+            "Long takes: surface error, drift and the canonical model's truth every N frames (0 = at the end only)");
   flags.Add("feed-stride", &stride, "Feed every n-th frame (fast motion)");
   flags.AddSwitch("verbose", &verbose, "One line per frame");
   if (auto exit_code = flags.ParseCommandLine(argc, argv, "vd_scene_bench", [&] { return options.Validate(); }))
@@ -26,7 +27,9 @@ int main(int argc, char** argv) {
   vd::test::SceneRun run;
   run.name = scene;
   run.params = options.engine;
-  run.num_frames = int(frames);
+  // --frames (the server's flag for synthetic: inputs): frames in one pass of the motion.
+  run.num_frames = options.synthetic_frames > 0 ? int(options.synthetic_frames) : 60;
+  run.report_every = int(std::max<int64_t>(0, report_every));
   run.stride = int(stride);
   run.verbose = verbose;
   run.device = options.device;

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdio>
 #include <string>
+#include <vector>
 #include <time.h>
 
 #include "core/engine.h"
@@ -20,8 +21,22 @@
 
 namespace vd::test {
 
+// One row of a long take (SceneRun::report_every): the frames since the previous row.
+struct TakeWindow {
+  int last_frame = 0;
+  // Mean surface error over the window's frames; drift at its last frame.
+  double mean_surface_mm = 0, drift_mm = 0;
+  // The canonical model's truth at the window's last frame: share of canonical vertices within
+  // 5 mm of the true first-frame surface, and the 90th percentile of their distance to it.
+  double canonical_within_5mm = 0, canonical_p90_mm = 0;
+};
+
 struct SceneErrors {
   double worst_surface_mm = 0, mean_surface_mm = 0, last_drift_mm = 0, last_nonrigid_mm = 0;
+  // The canonical model's truth at the last frame (as in TakeWindow).
+  double canonical_within_5mm = 0, canonical_p90_mm = 0;
+  // Rows every SceneRun::report_every frames (and at the last frame); empty when it is 0.
+  std::vector<TakeWindow> windows;
   // Engine statistics over the processed frames: stage means (ms), frames, mean active set size.
   std::array<double, StageTimes::kCount> stage_ms{};
   double total_ms = 0;
@@ -48,10 +63,30 @@ struct SceneRun {
   // Print one line per frame.
   bool verbose = false;
   std::string device;
+  // Long takes: a TakeWindow every this many frames (0 = none).
+  int report_every = 0;
 };
 
 inline Eigen::Vector3f V(const TriangleMesh& m, size_t i) {
   return Eigen::Vector3f(m.positions[3 * i], m.positions[3 * i + 1], m.positions[3 * i + 2]);
+}
+
+// Share of the canonical vertices within 5 mm of the true first-frame surface, and the 90th
+// percentile of their distances (mm).
+inline void CanonicalTruth(const TriangleMesh& canonical, const MeshDistance& gt0, double* within_5mm,
+                           double* p90_mm) {
+  std::vector<float> d(canonical.num_vertices());
+  size_t within = 0;
+  for (size_t i = 0; i < d.size(); ++i) {
+    d[i] = 1000.f * gt0.Closest(V(canonical, i)).distance;
+    within += d[i] <= 5.f;
+  }
+  *within_5mm = d.empty() ? 0.0 : double(within) / double(d.size());
+  *p90_mm = 0;
+  if (d.empty()) return;
+  const size_t k = std::min(d.size() - 1, size_t(0.9 * double(d.size())));
+  std::nth_element(d.begin(), d.begin() + long(k), d.end());
+  *p90_mm = d[k];
 }
 
 inline double ProcessCpuMs() {
@@ -68,7 +103,8 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   VD_ASSIGN_OR_RETURN(auto scene, MakeSyntheticScene(run.name, so));
   VD_ASSIGN_OR_RETURN(auto engine, Engine::Create(run.params, run.device));
   const MeshDistance gt0(scene->GroundTruthMesh(0));
-  double sum_surface = 0, sum_active = 0;
+  double sum_surface = 0, sum_active = 0, window_surface = 0;
+  int window_frames = 0;
   int last = 0;
   const int step = std::max(1, run.stride);
   for (int k = 0; k < run.num_frames; k += step) last = k;
@@ -98,6 +134,8 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
     const double surface_mm = 1000 * s / std::max<size_t>(1, r.live_mesh.num_vertices());
     out.worst_surface_mm = std::max(out.worst_surface_mm, surface_mm);
     sum_surface += surface_mm;
+    window_surface += surface_mm;
+    ++window_frames;
     ++out.frames;
     for (int i = 0; i < StageTimes::kCount; ++i) {
       out.stage_ms[i] += r.times.ms[i];
@@ -114,7 +152,8 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
                   1000 * scene->CameraPose(k)(1, 3), 1000 * scene->CameraPose(k)(2, 3), r.icp_inliers);
       if (!r.tracking_ok) std::printf("frame %3d: tracking failed: %s\n", k, r.tracking_message.c_str());
     }
-    if (k == last || (run.verbose && k % 10 == 0)) {
+    const bool report = run.report_every > 0 && (k % run.report_every == run.report_every - 1 || k == last);
+    if (k == last || report || (run.verbose && k % 10 == 0)) {
       // Drift: canonical vertex -> material point on frame 0's true surface -> its true position now.
       double d = 0, nr = 0;
       const Eigen::Matrix4f cam_from_world = r.pose.inverse().cast<float>();
@@ -131,6 +170,22 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
       if (run.verbose)
         std::printf("frame %3d: drift %.2f mm, mean non-rigid displacement %.2f mm\n", k, out.last_drift_mm,
                     out.last_nonrigid_mm);
+      if (report || k == last)
+        CanonicalTruth(r.canonical_mesh, gt0, &out.canonical_within_5mm, &out.canonical_p90_mm);
+      if (report) {
+        TakeWindow w;
+        w.last_frame = k;
+        w.mean_surface_mm = window_surface / std::max(1, window_frames);
+        w.drift_mm = out.last_drift_mm;
+        w.canonical_within_5mm = out.canonical_within_5mm;
+        w.canonical_p90_mm = out.canonical_p90_mm;
+        out.windows.push_back(w);
+        window_surface = 0;
+        window_frames = 0;
+        if (run.verbose)
+          std::printf("frames to %3d: surface %.2f mm, drift %.2f mm, canonical within 5 mm %.1f %%, p90 %.2f mm\n", k,
+                      w.mean_surface_mm, w.drift_mm, 100 * w.canonical_within_5mm, w.canonical_p90_mm);
+      }
     }
   }
   const int n = std::max(1, out.frames);
@@ -154,6 +209,12 @@ inline void PrintErrors(const std::string& label, const SceneErrors& e) {
   std::printf("%s: surface error mean %.2f mm, worst frame %.2f mm; last frame drift %.2f mm, mean non-rigid "
               "displacement %.2f mm\n",
               label.c_str(), e.mean_surface_mm, e.worst_surface_mm, e.last_drift_mm, e.last_nonrigid_mm);
+  std::printf("%s: canonical model at the last frame: %.1f %% of vertices within 5 mm of the true surface, p90 %.2f "
+              "mm\n",
+              label.c_str(), 100 * e.canonical_within_5mm, e.canonical_p90_mm);
+  for (const TakeWindow& w : e.windows)
+    std::printf("  frames to %4d: surface %.2f mm, drift %.2f mm, canonical within 5 mm %5.1f %%, p90 %.2f mm\n",
+                w.last_frame, w.mean_surface_mm, w.drift_mm, 100 * w.canonical_within_5mm, w.canonical_p90_mm);
 }
 
 // The engine suites' defaults: sensor noise, 4 mm voxels, 60 frames, default parameters.

@@ -55,6 +55,31 @@ TEST(OpenSource, SyntheticNoiseFlagReachesTheScene) {
   EXPECT_TRUE(SameImage((*f)->depth, (*scene)->Render(0).depth));
 }
 
+// --frames: the same motion over more frames, so less of it per frame.
+TEST(OpenSource, SyntheticFramesMakeALongTakeOfTheSameMotion) {
+  SourceOptions o;
+  o.synthetic_noise = false;
+  o.synthetic_frames = 120;
+  auto source = OpenSource("synthetic:tube", o);
+  ASSERT_TRUE(source.ok()) << source.status().ToString();
+  EXPECT_EQ((*source)->NumFrames(), 120);
+  SyntheticOptions short_take, long_take;
+  short_take.noise = long_take.noise = false;
+  long_take.num_frames = 120;
+  auto a = MakeSyntheticScene("tube", short_take);
+  auto b = MakeSyntheticScene("tube", long_take);
+  ASSERT_TRUE(a.ok() && b.ok());
+  const auto tip = [](const TriangleMesh& m) { return Eigen::Vector3f(m.positions[m.positions.size() - 3],
+                                                                        m.positions[m.positions.size() - 2],
+                                                                        m.positions.back()); };
+  const Eigen::Vector3f s1 = tip((*a)->GroundTruthMesh(1)), l1 = tip((*b)->GroundTruthMesh(1));
+  const Eigen::Vector3f s0 = tip((*a)->GroundTruthMesh(0));
+  EXPECT_GT((s1 - s0).norm(), 1e-4f) << "the tube's end moves between frames";
+  EXPECT_LT((l1 - s0).norm(), 0.75f * (s1 - s0).norm()) << "less motion per frame in the long take";
+  o.synthetic_frames = -1;
+  EXPECT_FALSE(OpenSource("synthetic:tube", o).ok());
+}
+
 TEST(OpenSource, SyntheticLoopIsEndless) {
   SourceOptions o;
   o.loop = true;

@@ -25,6 +25,9 @@ struct SourceOptions {
   bool loop = false;
   // Synthetic scenes: add Kinect-like depth noise.
   bool synthetic_noise = true;
+  // Synthetic scenes: frames in one pass of the motion (0: the scene's own, 60). More frames, the
+  // same motion: a long take with less motion per frame.
+  int64_t synthetic_frames = 0;
   // Time-out for one blocking read from a device or .oni file, seconds.
   double read_timeout_s = 2.0;
   Status Validate() const;
