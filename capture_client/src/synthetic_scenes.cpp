@@ -13,9 +13,11 @@ constexpr double kDeg = M_PI / 180.0;
 // curvature used (the 40 mm cylinder) is 0.0125 mm, far below the 1 mm depth quantisation.
 constexpr double kEdge = 0.002;
 
-// A capsule (cylinder with hemispherical ends) lying across the view that bends into an arc:
-// the end tangents turn by kMaxBend * sin^2(pi tau), up and back. The ends bend towards the
-// camera and up, so the motion shows both in depth and in the image.
+// A capsule (cylinder with hemispherical ends) lying across the view that bends into an arc.
+// "tube": the end tangents turn by kMaxBend * sin^2(pi tau), up and back. "bend" (a long-take
+// case): the arc closes monotonically to 150 degrees, 150 * (3 tau^2 - 2 tau^3), and stays: with
+// no return, what the model gets wrong over a take is still there at its end. The ends bend
+// towards the camera and up, so the motion shows both in depth and in the image.
 class TubeScene : public ParametricScene {
  public:
   // Tube radius and the length of its cylindrical part (caps add one radius at each end): 70 cm
@@ -23,8 +25,10 @@ class TubeScene : public ParametricScene {
   static constexpr double kRadius = 0.10;
   static constexpr double kLength = 0.50;
   static constexpr double kMaxBend = 55.0 * kDeg;
+  static constexpr double kFullBend = 150.0 * kDeg;
 
-  explicit TubeScene(const SyntheticOptions& options) : ParametricScene("tube", options, false) {
+  TubeScene(const SyntheticOptions& options, bool monotone)
+      : ParametricScene(monotone ? "bend" : "tube", options, false), monotone_(monotone) {
     // Half the meridian length, from the middle of the cylinder to a pole.
     const double half_meridian = 0.5 * kLength + 0.5 * M_PI * kRadius;
     Chart chart;
@@ -58,12 +62,15 @@ class TubeScene : public ParametricScene {
  protected:
   void WorldPositions(double tau, std::vector<Eigen::Vector3d>* world) const override {
     const double s = std::sin(M_PI * tau);
-    const double curvature = kMaxBend * s * s / kLength;
+    const double angle = monotone_ ? kFullBend * tau * tau * (3.0 - 2.0 * tau) : kMaxBend * s * s;
+    const double curvature = angle / kLength;
     world->resize(rest().size());
     for (size_t i = 0; i < rest().size(); ++i) (*world)[i] = pose_ * Bend(rest()[i], curvature);
   }
 
  private:
+  // "bend": closes to kFullBend and stays; "tube": up to kMaxBend and back.
+  bool monotone_;
   // Bends the cylindrical part into an arc of the given curvature (cross-sections stay planar
   // and normal to the centreline, which keeps its length); the caps follow the end sections.
   Eigen::Vector3d Bend(const Eigen::Vector3d& p, double curvature) const {
@@ -260,12 +267,13 @@ class RigidScene : public ParametricScene {
 }  // namespace
 }  // namespace synthetic_internal
 
-std::vector<std::string> SyntheticSceneNames() { return {"tube", "cloth", "rigid"}; }
+std::vector<std::string> SyntheticSceneNames() { return {"tube", "cloth", "rigid", "bend"}; }
 
 StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& name, const SyntheticOptions& options) {
   VD_RETURN_IF_ERROR(options.Validate());
   using namespace synthetic_internal;
-  if (name == "tube") return std::unique_ptr<SyntheticScene>(new TubeScene(options));
+  if (name == "tube") return std::unique_ptr<SyntheticScene>(new TubeScene(options, false));
+  if (name == "bend") return std::unique_ptr<SyntheticScene>(new TubeScene(options, true));
   if (name == "cloth") return std::unique_ptr<SyntheticScene>(new ClothScene(options));
   if (name == "rigid") return std::unique_ptr<SyntheticScene>(new RigidScene(options));
   std::string valid;

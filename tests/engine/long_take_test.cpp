@@ -29,6 +29,16 @@ TEST(LongTakeTest, TubeCanonicalModelStaysTrueAndDriftStaysBounded) {
   EXPECT_LE(e.last_drift_mm, 3.0);
 }
 
+// "bend": the tube closing to 150 degrees and staying there (no return to hide what went wrong),
+// like the held-out take the issue measured; the tube's bounds apply.
+TEST(LongTakeTest, BendCanonicalModelStaysTrueAndDriftStaysBounded) {
+  const test::SceneErrors e = LongTake("bend");
+  ASSERT_EQ(e.frames, 300);
+  EXPECT_GE(e.canonical_within_5mm, 0.95);
+  EXPECT_LE(e.worst_surface_mm, 1.0);
+  EXPECT_LE(e.last_drift_mm, 3.0);
+}
+
 TEST(LongTakeTest, ClothDriftStaysBoundedWithFeatures) {
   const test::SceneErrors e = LongTake("cloth");
   ASSERT_EQ(e.frames, 300);
