@@ -8,6 +8,7 @@
 #include <cstring>
 #include <malloc.h>
 #include <deque>
+#include <filesystem>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -441,6 +442,11 @@ class Node::Impl {
       published_seq_ = job.seq;
     }
     PublishMeshes(false);
+    if (!options_.save_dir.empty() && !job.result.tracked_mesh.triangles.empty()) {
+      // --track-mesh: numbered by the frame's sequence number (the node has no source index).
+      const Status s = WritePly(FramePath(options_.save_dir, job.seq, "tracked.ply"), job.result.tracked_mesh);
+      if (!s.ok() && tracked_write_failures_++ == 0) VD_LOG_ERROR << "cannot write the tracked mesh: " << s.ToString();
+    }
     RecordLatency(job.capture_utime);
     PublishStatus();
   }
@@ -574,6 +580,8 @@ class Node::Impl {
   int64_t out_seq_ = 0;
   // Messages that went out unsigned because signing failed (logged once).
   int64_t sign_failures_ = 0;
+  // Tracked meshes that could not be written to --save-dir (logged once).
+  int64_t tracked_write_failures_ = 0;
   // Decides when the worker writes a checkpoint.
   CheckpointScheduler scheduler_;
   // Frames received are counted by the gate; these are what became of them after it.
@@ -681,6 +689,21 @@ int RunNode(const ServerOptions& options) {
   if (!engine.ok()) {
     std::fprintf(stderr, "vdeform-server: %s\n", engine.status().ToString().c_str());
     return 1;
+  }
+  if (Status s = ApplyTrackMesh(options, engine->get()); !s.ok()) {
+    std::fprintf(stderr, "vdeform-server: %s\n", s.ToString().c_str());
+    return 2;
+  }
+  if ((options.track_mesh || !options.track_mesh_from.empty()) && options.save_dir.empty())
+    VD_LOG_WARNING << "--track-mesh without --save-dir: the tracked meshes are not written";
+  if ((options.track_mesh || !options.track_mesh_from.empty()) && !options.save_dir.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(options.save_dir, ec);
+    if (ec) {
+      std::fprintf(stderr, "vdeform-server: cannot create --save-dir '%s': %s\n", options.save_dir.c_str(),
+                   ec.message().c_str());
+      return 2;
+    }
   }
   VD_LOG_INFO << "vdeform-server on " << (*engine)->DeviceDescription() << ", LCM " << url
               << (options.stream.empty() ? "" : ", stream " + options.stream);

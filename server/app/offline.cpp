@@ -32,12 +32,6 @@ Status WritePose(const std::string& path, const Eigen::Matrix4d& T) {
   return out ? Status::Ok() : Unavailable("write failed for '" + path + "'");
 }
 
-std::string FramePath(const std::string& dir, int64_t index, const char* suffix) {
-  char name[64];
-  std::snprintf(name, sizeof(name), "frame-%06lld.%s", static_cast<long long>(index), suffix);
-  return (std::filesystem::path(dir) / name).string();
-}
-
 // Reads the source on its own thread, one frame ahead of the engine: frame k+1 is decoded and its
 // features detected (Engine::Prefetch) while frame k is solved. Frames come out in source order,
 // each exactly once; the source is only ever touched by the reader thread.
@@ -125,6 +119,7 @@ int RunOffline(const ServerOptions& options) {
   auto engine = Engine::Create(options.engine, options.device);
   if (!engine.ok()) return fail(engine.status());
   VD_LOG_INFO << "OpenCL device: " << (*engine)->DeviceDescription();
+  if (Status s = ApplyTrackMesh(options, engine->get()); !s.ok()) return fail(s);
 
   StageStats stats;
   const int64_t total = (*source)->NumFrames();
@@ -156,6 +151,8 @@ int RunOffline(const ServerOptions& options) {
       Status s = WritePly(FramePath(options.save_dir, index, "mesh.ply"), result->live_mesh);
       if (s.ok()) s = WritePly(FramePath(options.save_dir, index, "canonical.ply"), result->canonical_mesh);
       if (s.ok()) s = WritePose(FramePath(options.save_dir, index, "pose.txt"), result->pose);
+      if (s.ok() && !result->tracked_mesh.triangles.empty())
+        s = WritePly(FramePath(options.save_dir, index, "tracked.ply"), result->tracked_mesh);
       if (!s.ok()) return fail(s);
     }
     ++processed;

@@ -3,6 +3,9 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
+
+#include "vd/common/codecs.h"
 
 namespace vd {
 
@@ -24,6 +27,13 @@ void ServerOptions::Register(FlagParser* f) {
          "...)",
          "DIR");
   f->Add("stats-json", &stats_json, "Write per-stage timing statistics, fps and peak memory", "FILE");
+  f->AddSwitch("track-mesh", &track_mesh,
+               "With --save-dir, also write frame-%06d.tracked.ply: the first frame's mesh deformed by the current field, "
+               "in that frame's camera coordinates, with the same vertices and faces in every frame");
+  f->Add("track-mesh-from", &track_mesh_from,
+         "Track this PLY (canonical coordinates: the first frame's camera, metres) instead of the first frame's mesh "
+         "(implies --track-mesh)",
+         "FILE");
   engine.Bind(f);
   f->Section("Device");
   f->Add("device", &device, "OpenCL device: index (see --list-devices) or name substring; default first GPU, else CPU");
@@ -75,6 +85,23 @@ Status ServerOptions::Validate() const {
   VD_RETURN_IF_ERROR(gate.Validate());
   if (resume && checkpoint_dir.empty()) return InvalidArgument("--resume needs --checkpoint DIR");
   return Status::Ok();
+}
+
+Status ApplyTrackMesh(const ServerOptions& options, Engine* engine) {
+  if (!options.track_mesh && options.track_mesh_from.empty()) return Status::Ok();
+  TriangleMesh given;
+  if (!options.track_mesh_from.empty()) {
+    auto read = ReadPly(options.track_mesh_from);
+    if (!read.ok()) return read.status().WithContext("--track-mesh-from");
+    given = std::move(read).value();
+  }
+  return engine->TrackMesh(given).WithContext("--track-mesh-from");
+}
+
+std::string FramePath(const std::string& dir, int64_t index, const char* suffix) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "frame-%06lld.%s", static_cast<long long>(index), suffix);
+  return (std::filesystem::path(dir) / name).string();
 }
 
 StatusOr<GateOptions> ServerOptions::ToGateOptions() const {

@@ -22,6 +22,10 @@ struct ServerOptions {
   // synthetic: inputs: frames in one pass of the motion (0: the scene's own).
   int64_t synthetic_frames = 0;
   std::string save_dir;
+  // Fixed-topology tracked mesh: the first frame's mesh (or --track-mesh-from's, canonical
+  // coordinates) deformed into every frame, frame-%06d.tracked.ply with --save-dir.
+  bool track_mesh = false;
+  std::string track_mesh_from;
   std::string stats_json;
   // OpenCL device: index or name substring; empty = first GPU, else first CPU device.
   std::string device;
@@ -56,5 +60,11 @@ struct ServerOptions {
   // file (and the line of a frame key file).
   StatusOr<GateOptions> ToGateOptions() const;
 };
+
+// --track-mesh / --track-mesh-from: turns on the engine's tracked mesh (reading the PLY); nothing
+// when neither is given. Errors name the flag.
+Status ApplyTrackMesh(const ServerOptions& options, Engine* engine);
+// DIR/frame-%06d.SUFFIX: the per-frame files --save-dir holds.
+std::string FramePath(const std::string& dir, int64_t index, const char* suffix);
 
 }  // namespace vd

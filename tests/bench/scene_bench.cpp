@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   // --frames (the server's flag for synthetic: inputs): frames in one pass of the motion.
   run.num_frames = options.synthetic_frames > 0 ? int(options.synthetic_frames) : 60;
   run.report_every = int(std::max<int64_t>(0, report_every));
+  run.track_mesh = options.track_mesh;
   run.stride = int(stride);
   run.verbose = verbose;
   run.device = options.device;

@@ -14,6 +14,7 @@ test::SceneErrors LongTake(const std::string& scene) {
   run.name = scene;
   run.num_frames = 300;
   run.report_every = 30;
+  run.track_mesh = true;
   auto e = test::EvaluateScene(run);
   EXPECT_TRUE(e.ok()) << e.status().ToString();
   if (!e.ok()) return test::SceneErrors{};
@@ -24,6 +25,7 @@ test::SceneErrors LongTake(const std::string& scene) {
 TEST(LongTakeTest, TubeCanonicalModelStaysTrueAndDriftStaysBounded) {
   const test::SceneErrors e = LongTake("tube");
   ASSERT_EQ(e.frames, 300);
+  EXPECT_LE(e.tracked_mean_mm, 3.0);
   EXPECT_GE(e.canonical_within_5mm, 0.95);
   EXPECT_LE(e.worst_surface_mm, 1.0);
   EXPECT_LE(e.last_drift_mm, 3.0);
@@ -34,6 +36,7 @@ TEST(LongTakeTest, TubeCanonicalModelStaysTrueAndDriftStaysBounded) {
 TEST(LongTakeTest, BendCanonicalModelStaysTrueAndDriftStaysBounded) {
   const test::SceneErrors e = LongTake("bend");
   ASSERT_EQ(e.frames, 300);
+  EXPECT_LE(e.tracked_mean_mm, 3.0);
   EXPECT_GE(e.canonical_within_5mm, 0.95);
   EXPECT_LE(e.worst_surface_mm, 1.0);
   EXPECT_LE(e.last_drift_mm, 3.0);

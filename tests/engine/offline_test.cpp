@@ -2,11 +2,14 @@
 // --start and --stride they match the input frames.
 #include <gtest/gtest.h>
 
+#include <optional>
+
 #include <filesystem>
 #include <set>
 #include <string>
 
 #include "offline.h"
+#include "vd/common/codecs.h"
 #include "ocl/ocl.h"
 #include "../support/temp_dir.h"
 
@@ -46,6 +49,37 @@ TEST(OfflineTest, SaveDirNamesFilesBySourceFrameIndex) {
     for (const char* suffix : {"mesh.ply", "canonical.ply", "pose.txt"})
       expected.insert(std::string("frame-") + index + "." + suffix);
   EXPECT_EQ(files, expected);
+}
+
+// --track-mesh: frame-%06d.tracked.ply beside the others, the same vertex count and faces in
+// every frame; --track-mesh-from a missing file is a clear error before any frame.
+TEST(OfflineTest, TrackMeshWritesAFixedTopologyMeshPerFrame) {
+  auto devices = ocl::ListDevices();
+  if (!devices.ok() || devices->empty()) GTEST_SKIP() << "no OpenCL device";
+  ServerOptions options;
+  options.input = "synthetic:tube";
+  options.engine.voxel_size = 0.008f;
+  options.count = 4;
+  options.quiet = true;
+  options.track_mesh = true;
+  options.save_dir = test::TestTempDir("vd_offline_tracked");
+  fs::remove_all(options.save_dir);
+  ASSERT_EQ(RunOffline(options), 0);
+  std::optional<TriangleMesh> first;
+  for (const char* index : {"000000", "000001", "000002", "000003"}) {
+    auto m = ReadPly(options.save_dir + "/frame-" + index + ".tracked.ply");
+    ASSERT_TRUE(m.ok()) << index << ": " << m.status().ToString();
+    if (!first) {
+      first = *m;
+      EXPECT_GT(first->num_vertices(), 100u);
+      continue;
+    }
+    EXPECT_EQ(m->num_vertices(), first->num_vertices()) << index;
+    EXPECT_EQ(m->triangles, first->triangles) << index;
+  }
+  options.track_mesh = false;
+  options.track_mesh_from = options.save_dir + "/no-such.ply";
+  EXPECT_EQ(RunOffline(options), 1);
 }
 
 }  // namespace

@@ -35,6 +35,10 @@ struct SceneErrors {
   double worst_surface_mm = 0, mean_surface_mm = 0, last_drift_mm = 0, last_nonrigid_mm = 0;
   // The canonical model's truth at the last frame (as in TakeWindow).
   double canonical_within_5mm = 0, canonical_p90_mm = 0;
+  // With SceneRun::track_mesh: the tracked mesh's vertex count (constant) and the mean distance of
+  // its vertices to their material points' true positions at the last frame.
+  size_t tracked_vertices = 0;
+  double tracked_mean_mm = 0;
   // Rows every SceneRun::report_every frames (and at the last frame); empty when it is 0.
   std::vector<TakeWindow> windows;
   // Engine statistics over the processed frames: stage means (ms), frames, mean active set size.
@@ -65,6 +69,8 @@ struct SceneRun {
   std::string device;
   // Long takes: a TakeWindow every this many frames (0 = none).
   int report_every = 0;
+  // Track the first frame's mesh (Engine::TrackMesh) and measure it at the last frame.
+  bool track_mesh = false;
 };
 
 inline Eigen::Vector3f V(const TriangleMesh& m, size_t i) {
@@ -102,6 +108,8 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   so.num_frames = run.num_frames;
   VD_ASSIGN_OR_RETURN(auto scene, MakeSyntheticScene(run.name, so));
   VD_ASSIGN_OR_RETURN(auto engine, Engine::Create(run.params, run.device));
+  if (run.track_mesh) VD_RETURN_IF_ERROR(engine->TrackMesh());
+  TriangleMesh first_canonical;
   const MeshDistance gt0(scene->GroundTruthMesh(0));
   double sum_surface = 0, sum_active = 0, window_surface = 0;
   int window_frames = 0;
@@ -142,6 +150,20 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
       out.total_ms += r.times.ms[i];
     }
     sum_active += double(r.active_voxels);
+    if (run.track_mesh && out.frames == 1) first_canonical = r.canonical_mesh;
+    if (run.track_mesh && k == last) {
+      // Each tracked vertex's material point (its closest point on frame 0's true surface), where
+      // it really is now, in this frame's camera, against where the tracked mesh put it.
+      const Eigen::Matrix4f cam_from_world = r.pose.inverse().cast<float>();
+      const TriangleMesh& t = r.tracked_mesh;
+      double sum = 0;
+      for (size_t i = 0; i < t.num_vertices() && i < first_canonical.num_vertices(); ++i) {
+        const Eigen::Vector3f truth = MeshDistance::Evaluate(gt, gt0.Closest(V(first_canonical, i)).where);
+        sum += ((cam_from_world * truth.homogeneous()).head<3>() - V(t, i)).norm();
+      }
+      out.tracked_vertices = t.num_vertices();
+      out.tracked_mean_mm = 1000 * sum / std::max<size_t>(1, t.num_vertices());
+    }
     if (run.verbose) {
       std::printf("frame %3d: surface %.2f mm, %zu vertices, %lld active, E %.4g -> %.4g, %d constraints, features "
                   "%d/%d lifted, %d matches\n",
@@ -212,6 +234,9 @@ inline void PrintErrors(const std::string& label, const SceneErrors& e) {
   std::printf("%s: canonical model at the last frame: %.1f %% of vertices within 5 mm of the true surface, p90 %.2f "
               "mm\n",
               label.c_str(), 100 * e.canonical_within_5mm, e.canonical_p90_mm);
+  if (e.tracked_vertices > 0)
+    std::printf("%s: tracked mesh (%zu vertices) at the last frame: mean %.2f mm from the true positions\n",
+                label.c_str(), e.tracked_vertices, e.tracked_mean_mm);
   for (const TakeWindow& w : e.windows)
     std::printf("  frames to %4d: surface %.2f mm, drift %.2f mm, canonical within 5 mm %5.1f %%, p90 %.2f mm\n",
                 w.last_frame, w.mean_surface_mm, w.drift_mm, 100 * w.canonical_within_5mm, w.canonical_p90_mm);

@@ -263,6 +263,79 @@ void Engine::Reset() {
   matches_.clear();
   pose_ = model_pose_ = Eigen::Matrix4d::Identity();
   mesh_.num_vertices = mesh_.num_triangles = 0;
+  tracked_.num_vertices = tracked_.num_triangles = 0;
+}
+
+Status Engine::TrackMesh(const TriangleMesh& canonical) {
+  if (!canonical.positions.empty() || !canonical.triangles.empty()) {
+    const size_t nv = canonical.num_vertices();
+    if (nv == 0 || canonical.triangles.empty() || canonical.positions.size() != 3 * nv)
+      return InvalidArgument("the mesh to track needs vertices and faces");
+    for (int32_t i : canonical.triangles)
+      if (i < 0 || size_t(i) >= nv)
+        return InvalidArgument("the mesh to track has a face naming vertex " + std::to_string(i) + " of " +
+                               std::to_string(nv));
+    for (float v : canonical.positions)
+      if (!std::isfinite(v)) return InvalidArgument("the mesh to track has a non-finite vertex");
+  }
+  track_mesh_ = true;
+  track_given_ = canonical;
+  tracked_.num_vertices = tracked_.num_triangles = 0;
+  return Status::Ok();
+}
+
+Status Engine::ExtractTracked(FrameResult* result) {
+  if (!track_mesh_) return Status::Ok();
+  if (tracked_.num_vertices == 0) {
+    // Fixed now: the given mesh, or this (first) frame's canonical mesh, in grid units.
+    const TriangleMesh& source = track_given_.positions.empty() ? result->canonical_mesh : track_given_;
+    const size_t nv = source.num_vertices();
+    if (nv == 0 || source.triangles.empty()) return Status::Ok();  // nothing fused yet
+    const VdVolume& vol = volume_.vol;
+    std::vector<vd_float4> grid(nv);
+    size_t outside = 0;
+    for (size_t i = 0; i < nv; ++i) {
+      const float* p = &source.positions[3 * i];
+      grid[i] = VD_F4((p[0] - vol.origin.x) / vol.voxel_size, (p[1] - vol.origin.y) / vol.voxel_size,
+                      (p[2] - vol.origin.z) / vol.voxel_size, 1.f);
+      outside += grid[i].x < 0 || grid[i].y < 0 || grid[i].z < 0 || grid[i].x > vol.dim_x - 1 ||
+                 grid[i].y > vol.dim_y - 1 || grid[i].z > vol.dim_z - 1;
+    }
+    if (outside > 0)
+      VD_LOG_WARNING << "tracked mesh: " << outside << " of " << nv
+                     << " vertices lie outside the volume; they follow its nearest cells' field";
+    VD_RETURN_IF_ERROR(ctx_->Reserve(&tracked_.positions_grid, nv));
+    VD_RETURN_IF_ERROR(ctx_->Reserve(&tracked_.positions, nv));
+    VD_RETURN_IF_ERROR(ctx_->Upload(tracked_.positions_grid, grid.data(), nv));
+    tracked_.num_vertices = nv;
+    tracked_.num_triangles = source.triangles.size() / 3;
+    TriangleMesh& t = result->tracked_mesh;
+    t.triangles = source.triangles;
+    t.colors = source.colors;
+    track_given_.triangles = source.triangles;
+    track_given_.colors = source.colors;
+  } else {
+    result->tracked_mesh.triangles = track_given_.triangles;
+    result->tracked_mesh.colors = track_given_.colors;
+  }
+  const size_t nv = tracked_.num_vertices;
+  if (volume_.has_deformation()) {
+    VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &tracked_));
+  } else {
+    VD_RETURN_IF_ERROR(ops_.GridToWorld(volume_.vol, &tracked_));
+  }
+  tracked_host_.resize(nv);
+  VD_RETURN_IF_ERROR(ctx_->Download(tracked_.positions, tracked_host_.data(), nv));
+  const Eigen::Matrix4d inv = pose_.inverse();
+  const Eigen::Matrix3f R = inv.topLeftCorner<3, 3>().cast<float>();
+  const Eigen::Vector3f tr = inv.topRightCorner<3, 1>().cast<float>();
+  TriangleMesh& t = result->tracked_mesh;
+  t.positions.resize(3 * nv);
+  for (size_t i = 0; i < nv; ++i) {
+    const Eigen::Vector3f p = R * Eigen::Vector3f(tracked_host_[i].x, tracked_host_[i].y, tracked_host_[i].z) + tr;
+    for (int a = 0; a < 3; ++a) t.positions[3 * i + a] = p[a];
+  }
+  return Status::Ok();
 }
 
 StatusOr<VdVolume> Engine::PlaceVolume(const RgbdFrame& frame, const EngineParams& p) {
@@ -626,6 +699,9 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     ++frames_fused_;
   }
   VD_RETURN_IF_ERROR(ExtractMesh(&result));
+  const auto t_tracked = Clock::now();
+  VD_RETURN_IF_ERROR(ExtractTracked(&result));
+  result.times[Stage::kDownload] += MsSince(t_tracked);
   model_pose_ = pose_;
   result.active_voxels = int64_t(active_.count);
   return result;

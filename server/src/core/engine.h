@@ -127,6 +127,9 @@ struct FrameResult {
   // Live mesh in this frame's camera coordinates, and the same vertices/faces in canonical pose.
   TriangleMesh live_mesh;
   TriangleMesh canonical_mesh;
+  // With TrackMesh: the tracked mesh (fixed vertices and faces) deformed by this frame's field,
+  // in this frame's camera coordinates; empty otherwise.
+  TriangleMesh tracked_mesh;
   StageTimes times;
   int icp_inliers = 0;
   float icp_rmse = 0.f;
@@ -162,6 +165,12 @@ class Engine {
   void Prefetch(const RgbdFrame& next);
   // Drops the model; the next frame starts a new one.
   void Reset();
+  // A fixed-topology tracked mesh in every FrameResult (tracked_mesh): `canonical` (world metres,
+  // i.e. canonical coordinates), or, when empty, the first frame's canonical mesh. The same
+  // vertices and faces in every frame, each vertex moved by the deformation field S and seen from
+  // the frame's camera. A mesh with no vertices or faces, or with a face naming a missing vertex,
+  // is refused. Kept across Reset (a given mesh) or re-taken from the next first frame.
+  Status TrackMesh(const TriangleMesh& canonical = {});
 
   const EngineParams& params() const { return params_; }
   std::string DeviceDescription() const { return ctx_->Describe(); }
@@ -194,6 +203,7 @@ class Engine {
   Status Preprocess(const RgbdFrame& frame);
   Status Track(FrameResult* result);
   Status ExtractMesh(FrameResult* result);
+  Status ExtractTracked(FrameResult* result);
   Status NonRigid(FrameResult* result);
   bool SparseEnabled() const;
 
@@ -205,6 +215,12 @@ class Engine {
   DeviceVolume volume_;
   DeviceMesh mesh_;
   DeviceRaster model_;
+  // The tracked mesh (TrackMesh): on, given in canonical coordinates (empty: the first frame's),
+  // and on the device in grid units once the volume is placed (positions_grid fixed).
+  bool track_mesh_ = false;
+  TriangleMesh track_given_;
+  DeviceMesh tracked_;
+  std::vector<vd_float4> tracked_host_;
   // Non-rigid state: the active set, the deformed mesh rendered at the current pose, the
   // per-pixel correspondences and the solver's buffers.
   DeviceActiveSet active_;
