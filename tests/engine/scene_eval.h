@@ -38,7 +38,7 @@ struct SceneErrors {
   // With SceneRun::track_mesh: the tracked mesh's vertex count (constant) and the mean distance of
   // its vertices to their material points' true positions at the last frame.
   size_t tracked_vertices = 0;
-  double tracked_mean_mm = 0;
+  double tracked_mean_mm = 0, tracked_median_mm = 0, tracked_within_5mm = 0;
   // Rows every SceneRun::report_every frames (and at the last frame); empty when it is 0.
   std::vector<TakeWindow> windows;
   // Engine statistics over the processed frames: stage means (ms), frames, mean active set size.
@@ -153,16 +153,27 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
     if (run.track_mesh && out.frames == 1) first_canonical = r.canonical_mesh;
     if (run.track_mesh && k == last) {
       // Each tracked vertex's material point (its closest point on frame 0's true surface), where
-      // it really is now, in this frame's camera, against where the tracked mesh put it.
-      const Eigen::Matrix4f cam_from_world = r.pose.inverse().cast<float>();
+      // it really is now (the ground truth is in this frame's camera), against where the tracked
+      // mesh put it.
       const TriangleMesh& t = r.tracked_mesh;
-      double sum = 0;
+      std::vector<float> d;
       for (size_t i = 0; i < t.num_vertices() && i < first_canonical.num_vertices(); ++i) {
         const Eigen::Vector3f truth = MeshDistance::Evaluate(gt, gt0.Closest(V(first_canonical, i)).where);
-        sum += ((cam_from_world * truth.homogeneous()).head<3>() - V(t, i)).norm();
+        d.push_back(1000.f * (truth - V(t, i)).norm());
       }
       out.tracked_vertices = t.num_vertices();
-      out.tracked_mean_mm = 1000 * sum / std::max<size_t>(1, t.num_vertices());
+      if (!d.empty()) {
+        double sum = 0;
+        size_t within = 0;
+        for (float v : d) {
+          sum += v;
+          within += v <= 5.f;
+        }
+        out.tracked_mean_mm = sum / double(d.size());
+        out.tracked_within_5mm = double(within) / double(d.size());
+        std::nth_element(d.begin(), d.begin() + long(d.size() / 2), d.end());
+        out.tracked_median_mm = d[d.size() / 2];
+      }
     }
     if (run.verbose) {
       std::printf("frame %3d: surface %.2f mm, %zu vertices, %lld active, E %.4g -> %.4g, %d constraints, features "
@@ -235,8 +246,9 @@ inline void PrintErrors(const std::string& label, const SceneErrors& e) {
               "mm\n",
               label.c_str(), 100 * e.canonical_within_5mm, e.canonical_p90_mm);
   if (e.tracked_vertices > 0)
-    std::printf("%s: tracked mesh (%zu vertices) at the last frame: mean %.2f mm from the true positions\n",
-                label.c_str(), e.tracked_vertices, e.tracked_mean_mm);
+    std::printf("%s: tracked mesh (%zu vertices) at the last frame: mean %.2f mm, median %.2f mm from the true "
+                "positions, %.1f %% within 5 mm\n",
+                label.c_str(), e.tracked_vertices, e.tracked_mean_mm, e.tracked_median_mm, 100 * e.tracked_within_5mm);
   for (const TakeWindow& w : e.windows)
     std::printf("  frames to %4d: surface %.2f mm, drift %.2f mm, canonical within 5 mm %5.1f %%, p90 %.2f mm\n",
                 w.last_frame, w.mean_surface_mm, w.drift_mm, 100 * w.canonical_within_5mm, w.canonical_p90_mm);
