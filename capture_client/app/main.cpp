@@ -209,8 +209,10 @@ int64_t NowMicros() {
 // before streaming, and sent from memory (~75 KB a frame); stamping and signing happen per send.
 constexpr int64_t kMaxPrerenderedFrames = 3000;
 
+// Not in --lockstep: there the server waits for the capture anyway, and rendering between frames
+// costs it nothing.
 bool Prerenders(const Args& a, int64_t total) {
-  return a.source.rfind("synthetic:", 0) == 0 && total > 0 && total <= kMaxPrerenderedFrames;
+  return a.source.rfind("synthetic:", 0) == 0 && !a.lockstep && total > 0 && total <= kMaxPrerenderedFrames;
 }
 
 // Renders and encodes every frame of the source; stops early (short vector) on a stop signal.
