@@ -10,7 +10,6 @@
 #include <deque>
 #include <filesystem>
 #include <map>
-#include <memory>
 #include <mutex>
 #include <optional>
 #include <thread>
@@ -350,7 +349,6 @@ class Node::Impl {
     if (reject_counts_[reason]++ == 0) VD_LOG_WARNING << "rejected a frame (" << reason << "): " << s.ToString();
   }
 
-  // Encodes the meshes of `result` for publishing; called with mutex_ held.
   // The live mesh is encoded for every frame (outside mutex_: Draco takes ~20 ms on a 50k-vertex
   // mesh); the canonical one only when it is published or saved (EncodeCanonical), at most once a
   // second, instead of every frame.
@@ -369,7 +367,7 @@ class Node::Impl {
   // A frame's meshes become the ones published and saved (mutex_ held).
   void KeepMeshes(std::optional<vdeform::mesh_t> live, FrameResult* result, int64_t seq) {
     if (live) last_live_ = std::move(live);
-    canonical_pending_ = std::make_shared<const TriangleMesh>(std::move(result->canonical_mesh));
+    canonical_pending_ = std::move(result->canonical_mesh);
     canonical_pending_seq_ = seq;
     canonical_changed_ = true;
   }
@@ -478,8 +476,10 @@ class Node::Impl {
     std::lock_guard<std::mutex> lock(mutex_);
     if (last_live_) PublishOutput(channels_.mesh, &*last_live_, &SignMesh);
     const auto now = Clock::now();
-    if (force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1))) EncodeCanonical();
-    if (last_canonical_ && (force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1)))) {
+    const bool canonical_due =
+        force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1));
+    if (canonical_due) EncodeCanonical();
+    if (last_canonical_ && canonical_due) {
       PublishOutput(channels_.mesh, &*last_canonical_, &SignMesh);
       last_canonical_sent_ = now;
       canonical_changed_ = false;
@@ -629,7 +629,7 @@ class Node::Impl {
   // Encoded once per frame, republished on REQUEST_MESH to viewers that join late.
   std::optional<vdeform::mesh_t> last_live_, last_canonical_;
   // The newest canonical mesh while last_canonical_ does not hold it yet, and its frame.
-  std::shared_ptr<const TriangleMesh> canonical_pending_;
+  std::optional<TriangleMesh> canonical_pending_;
   int64_t canonical_pending_seq_ = 0;
   // The canonical mesh is large: sent at most once a second, and only when it changed.
   bool canonical_changed_ = false;
@@ -694,9 +694,9 @@ int RunNode(const ServerOptions& options) {
     std::fprintf(stderr, "vdeform-server: %s\n", s.ToString().c_str());
     return 2;
   }
-  if ((options.track_mesh || !options.track_mesh_from.empty()) && options.save_dir.empty())
+  if (options.tracks_mesh() && options.save_dir.empty())
     VD_LOG_WARNING << "--track-mesh without --save-dir: the tracked meshes are not written";
-  if ((options.track_mesh || !options.track_mesh_from.empty()) && !options.save_dir.empty()) {
+  if (options.tracks_mesh() && !options.save_dir.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(options.save_dir, ec);
     if (ec) {

@@ -88,7 +88,7 @@ Status ServerOptions::Validate() const {
 }
 
 Status ApplyTrackMesh(const ServerOptions& options, Engine* engine) {
-  if (!options.track_mesh && options.track_mesh_from.empty()) return Status::Ok();
+  if (!options.tracks_mesh()) return Status::Ok();
   TriangleMesh given;
   if (!options.track_mesh_from.empty()) {
     auto read = ReadPly(options.track_mesh_from);

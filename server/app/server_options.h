@@ -26,6 +26,7 @@ struct ServerOptions {
   // coordinates) deformed into every frame, frame-%06d.tracked.ply with --save-dir.
   bool track_mesh = false;
   std::string track_mesh_from;
+  bool tracks_mesh() const { return track_mesh || !track_mesh_from.empty(); }
   std::string stats_json;
   // OpenCL device: index or name substring; empty = first GPU, else first CPU device.
   std::string device;
