@@ -105,8 +105,9 @@ TEST(TrackedMeshTest, AGivenMeshIsTrackedAndABrokenOneRefused) {
     ASSERT_TRUE(r.ok());
     ASSERT_EQ(r->tracked_mesh.num_vertices(), 3u) << k;
     EXPECT_EQ(r->tracked_mesh.triangles, tri.triangles);
-    if (k == 0)
+    if (k == 0) {
       for (size_t i = 0; i < 9; ++i) EXPECT_NEAR(r->tracked_mesh.positions[i], tri.positions[i], 1e-5f);
+    }
   }
 }
 

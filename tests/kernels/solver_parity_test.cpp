@@ -1,6 +1,6 @@
 // The cached B^T B build of the position step (shared/solver.h: per-cell moments, then per-point
-// assembly) on the device against its CPU reference, and both against an independent assembly
-// that walks every constraint's 8 x 8 corner pairs in double precision.
+// assembly) and its product on the device against their CPU references, and both against an
+// independent assembly that walks every constraint's 8 x 8 corner pairs in double precision.
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
@@ -73,6 +73,45 @@ Problem MakeProblem() {
   return p;
 }
 
+// Independent: every constraint adds w_d w alpha_o alpha_q n n^T to the block (idx_o, idx_q)
+// and w_d w alpha_o (n . p) n to b_o.
+struct IndependentBtb {
+  std::map<std::pair<int, int>, Eigen::Matrix3d> blocks;
+  std::vector<Eigen::Vector3d> rhs;
+};
+IndependentBtb AssembleIndependently(const Problem& p, VdSolverWeights w) {
+  const int m = int(p.active.list.size());
+  IndependentBtb ref;
+  ref.rhs.assign(m, Eigen::Vector3d::Zero());
+  for (const auto& c : p.cons) {
+    int idx[8];
+    float al[8];
+    EXPECT_TRUE(vd_cell_corners(c.canonical, p.active.compact.data(), p.vol, idx, al));
+    const Eigen::Vector3d n(c.normal.x, c.normal.y, c.normal.z), t(c.target.x, c.target.y, c.target.z);
+    const double f[3] = {c.canonical.x - std::floor(c.canonical.x), c.canonical.y - std::floor(c.canonical.y),
+                         c.canonical.z - std::floor(c.canonical.z)};
+    for (int o = 0; o < 8; ++o) {
+      const double ao = (o & 1 ? f[0] : 1 - f[0]) * (o & 2 ? f[1] : 1 - f[1]) * (o & 4 ? f[2] : 1 - f[2]);
+      ref.rhs[idx[o]] += double(w.w_dense) * c.canonical.w * ao * n.dot(t) * n;
+      for (int q = 0; q < 8; ++q) {
+        const double aq = (q & 1 ? f[0] : 1 - f[0]) * (q & 2 ? f[1] : 1 - f[1]) * (q & 4 ? f[2] : 1 - f[2]);
+        auto it = ref.blocks.try_emplace({idx[o], idx[q]}, Eigen::Matrix3d::Zero()).first;
+        it->second += double(w.w_dense) * c.canonical.w * ao * aq * n * n.transpose();
+      }
+    }
+  }
+  return ref;
+}
+
+// The cached block of point k at offset o (0..26); zero outside M.
+Eigen::Matrix3d StoredBlock(const std::vector<float>& blocks, const std::vector<int>& nbr, int k, int o) {
+  if (nbr[VD_BTB_BLOCKS * k + o] < 0) return Eigen::Matrix3d::Zero();
+  const float* b = &blocks[size_t(VD_BTB_FLOATS) * k + 6 * o];
+  Eigen::Matrix3d got;
+  got << b[0], b[1], b[2], b[1], b[3], b[4], b[2], b[4], b[5];
+  return got;
+}
+
 TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   VD_REQUIRE_OCL(ctx);
   const Problem p = MakeProblem();
@@ -124,27 +163,7 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
     }
   EXPECT_TRUE(AllClose(inv_f, inv_ref_f, 1e-6f, 1e-5f));
 
-  // Independent: every constraint adds w_d w alpha_o alpha_q n n^T to the block (idx_o, idx_q)
-  // and w_d w alpha_o (n . p) n to b_o.
-  std::map<std::pair<int, int>, Eigen::Matrix3d> ref_blocks;
-  std::vector<Eigen::Vector3d> ref_rhs(m, Eigen::Vector3d::Zero());
-  for (const auto& c : p.cons) {
-    int idx[8];
-    float al[8];
-    ASSERT_TRUE(vd_cell_corners(c.canonical, p.active.compact.data(), p.vol, idx, al));
-    const Eigen::Vector3d n(c.normal.x, c.normal.y, c.normal.z), t(c.target.x, c.target.y, c.target.z);
-    const double f[3] = {c.canonical.x - std::floor(c.canonical.x), c.canonical.y - std::floor(c.canonical.y),
-                         c.canonical.z - std::floor(c.canonical.z)};
-    for (int o = 0; o < 8; ++o) {
-      const double ao = (o & 1 ? f[0] : 1 - f[0]) * (o & 2 ? f[1] : 1 - f[1]) * (o & 4 ? f[2] : 1 - f[2]);
-      ref_rhs[idx[o]] += double(w.w_dense) * c.canonical.w * ao * n.dot(t) * n;
-      for (int q = 0; q < 8; ++q) {
-        const double aq = (q & 1 ? f[0] : 1 - f[0]) * (q & 2 ? f[1] : 1 - f[1]) * (q & 4 ? f[2] : 1 - f[2]);
-        auto it = ref_blocks.try_emplace({idx[o], idx[q]}, Eigen::Matrix3d::Zero()).first;
-        it->second += double(w.w_dense) * c.canonical.w * ao * aq * n * n.transpose();
-      }
-    }
-  }
+  const IndependentBtb ref = AssembleIndependently(p, w);
   double worst_block = 0, largest_block = 0, worst_rhs = 0, worst_inv = 0;
   size_t nonzero_blocks = 0;
   for (int k = 0; k < m; ++k) {
@@ -152,13 +171,11 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
     for (int j = 0; j < 6; ++j) degree += p.active.neighbours[6 * k + j] >= 0;
     for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
       const int j = nbr[VD_BTB_BLOCKS * k + o];
-      const float* b = &blocks[size_t(VD_BTB_FLOATS) * k + 6 * o];
-      Eigen::Matrix3d got;
-      got << b[0], b[1], b[2], b[1], b[3], b[4], b[2], b[4], b[5];
+      const Eigen::Matrix3d got = StoredBlock(blocks, nbr, k, o);
       Eigen::Matrix3d want = Eigen::Matrix3d::Zero();
       if (j >= 0) {
-        auto it = ref_blocks.find({k, j});
-        if (it != ref_blocks.end()) want = it->second;
+        auto it = ref.blocks.find({k, j});
+        if (it != ref.blocks.end()) want = it->second;
       }
       nonzero_blocks += want.norm() > 0;
       worst_block = std::max(worst_block, (got - want).cwiseAbs().maxCoeff());
@@ -172,7 +189,7 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
       }
     }
     const Eigen::Vector3d got_rhs(rhs[k].x, rhs[k].y, rhs[k].z);
-    worst_rhs = std::max(worst_rhs, (got_rhs - ref_rhs[k]).cwiseAbs().maxCoeff());
+    worst_rhs = std::max(worst_rhs, (got_rhs - ref.rhs[k]).cwiseAbs().maxCoeff());
   }
   std::printf("%d points, %zu constraints, %zu non-zero blocks; worst block error %.3g (largest %.3g), rhs %.3g, "
               "relative inverse diagonal %.3g\n",
@@ -181,6 +198,66 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   EXPECT_LT(worst_block, 2e-6 * largest_block);
   EXPECT_LT(worst_rhs, 1e-6);
   EXPECT_LT(worst_inv, 1e-5);
+}
+
+// The product A d with the cached blocks on the device, on the CPU, and in double precision from the independent blocks.
+TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
+  VD_REQUIRE_OCL(ctx);
+  const Problem p = MakeProblem();
+  const int m = int(p.active.list.size());
+  VdSolverWeights w{};
+  w.w_dense = 0.8f;
+  w.w_reg = 1.5f;
+  w.damping = 3e-3f;
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> uni(-1.f, 1.f);
+  std::vector<vd_float4> d(m);
+  for (auto& v : d) v = VD_F4(uni(rng), uni(rng), uni(rng), 7.f);  // w is not part of the product
+
+  auto d_list = ToDevice(ctx, p.active.list);
+  auto d_compact = ToDevice(ctx, p.active.compact);
+  auto d_nb = ToDevice(ctx, p.active.neighbours);
+  auto d_cons = ToDevice(ctx, p.cons);
+  auto d_start = ToDevice(ctx, p.cell_start);
+  auto d_d = ToDevice(ctx, d);
+  auto d_moments = ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * m);
+  auto d_blocks = ctx->Alloc<float>(size_t(VD_BTB_FLOATS) * m);
+  auto d_nbr = ctx->Alloc<int32_t>(size_t(VD_BTB_BLOCKS) * m);
+  auto d_rhs = ctx->Alloc<vd_float4>(m);
+  auto d_inv = ctx->Alloc<VdMat3>(m);
+  auto d_q = ctx->Alloc<vd_float4>(m);
+  ASSERT_TRUE(d_moments.ok() && d_blocks.ok() && d_nbr.ok() && d_rhs.ok() && d_inv.ok() && d_q.ok());
+  ASSERT_TRUE(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_cons, d_start, w, *d_moments, *d_blocks,
+                            *d_nbr, *d_rhs, *d_inv)
+                  .ok());
+  ASSERT_TRUE(ocl::ApplySystemCached(*ctx, m, d_nb, *d_blocks, *d_nbr, d_d, w, *d_q).ok());
+  const auto q = FromDevice(ctx, *d_q, m);
+  const auto blocks = FromDevice(ctx, *d_blocks, size_t(VD_BTB_FLOATS) * m);
+  const auto nbr = FromDevice(ctx, *d_nbr, size_t(VD_BTB_BLOCKS) * m);
+
+  std::vector<vd_float4> q_cpu(m);
+  cpu::ApplySystemCached(p.active.neighbours.data(), blocks.data(), nbr.data(), d.data(), w, m, q_cpu.data());
+  EXPECT_TRUE(AllClose(Flatten(q), Flatten(q_cpu), 1e-6f, 1e-5f));
+
+  const IndependentBtb ref = AssembleIndependently(p, w);
+  std::vector<Eigen::Vector3d> want(m, Eigen::Vector3d::Zero());
+  auto vec = [&](int k) { return Eigen::Vector3d(d[k].x, d[k].y, d[k].z); };
+  for (const auto& [pair, block] : ref.blocks) want[pair.first] += block * vec(pair.second);
+  double worst = 0, largest = 0;
+  for (int k = 0; k < m; ++k) {
+    want[k] += double(w.damping) * vec(k);
+    for (int j = 0; j < 6; ++j) {
+      const int nb = p.active.neighbours[6 * k + j];
+      if (nb >= 0) want[k] += 2.0 * w.w_reg * (vec(k) - vec(nb));
+    }
+    const Eigen::Vector3d got(q[k].x, q[k].y, q[k].z);
+    worst = std::max(worst, (got - want[k]).cwiseAbs().maxCoeff());
+    largest = std::max(largest, want[k].cwiseAbs().maxCoeff());
+    EXPECT_EQ(q[k].w, 0.f);
+  }
+  std::printf("%d points: worst product error %.3g (largest entry %.3g)\n", m, worst, largest);
+  EXPECT_GT(largest, 1.0);
+  EXPECT_LT(worst, 2e-5 * largest);
 }
 
 // One PCG iteration with its scalars on the device (dot partials, vd_pcg_scalars, update,

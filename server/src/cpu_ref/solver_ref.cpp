@@ -16,4 +16,10 @@ void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* n
     data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, cell_start, moments, w, blocks, nbr, &diag_inv[k]);
 }
 
+void ApplySystemCached(const int* neighbours, const float* blocks, const int* nbr, const vd_float4* d,
+                       VdSolverWeights w, int m, vd_float4* q) {
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, neighbours, blocks, nbr, d, w);
+}
+
 }  // namespace vd::cpu

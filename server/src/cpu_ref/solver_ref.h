@@ -1,6 +1,7 @@
 #pragma once
-// CPU reference of the cached B^T B build (kernels vd_cell_moments_kernel and
-// vd_btb_assemble_kernel): the shared per-item functions of shared/solver.h looped with OpenMP.
+// CPU reference of the cached B^T B build and product (kernels vd_cell_moments_kernel,
+// vd_btb_assemble_kernel and vd_system_apply_cached_kernel): the shared per-item functions of
+// shared/solver.h looped with OpenMP.
 // The test oracle of the kernels.
 #include <vector>
 
@@ -12,10 +13,13 @@ namespace vd::cpu {
 // without constraints are left as given), for m active points and constraints sorted by cell.
 void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, const vd_uint* cell_start, int m,
                  float* moments);
-// Per point: 27 blocks (VD_BTB_FLOATS floats) and neighbour indices, the data right-hand side
-// and the inverse diagonal block, from the moments.
+// Per point: 27 blocks (VD_BTB_FLOATS floats) and neighbour indices, the data
+// right-hand side and the inverse diagonal block, from the moments.
 void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const vd_uint* cell_start,
                  const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr, vd_float4* data_rhs,
                  VdMat3* diag_inv);
+// q = A d (ARAP Laplacian, cached w_d B^T B, damping) for m points.
+void ApplySystemCached(const int* neighbours, const float* blocks, const int* nbr, const vd_float4* d,
+                       VdSolverWeights w, int m, vd_float4* q);
 
 }  // namespace vd::cpu
