@@ -333,8 +333,8 @@ StatusOr<RgbdFrame> MessageToFrame(const vdeform::rgbd_frame_t& msg) {
 
 StatusOr<vdeform::mesh_t> MeshToMessage(const TriangleMesh& mesh, int64_t utime, int64_t seq, int8_t kind,
                                         int8_t encoding, const DracoOptions& draco) {
-  if (kind != vdeform::mesh_t::KIND_LIVE && kind != vdeform::mesh_t::KIND_CANONICAL)
-    return InvalidArgument("mesh kind " + std::to_string(kind) + " is not LIVE (0) or CANONICAL (1)");
+  if (!KnownMeshKind(kind))
+    return InvalidArgument("mesh kind " + std::to_string(kind) + " is not LIVE (0), CANONICAL (1) or TRACKED (2)");
   if (encoding != vdeform::mesh_t::ENCODING_DRACO && encoding != vdeform::mesh_t::ENCODING_RAW)
     return InvalidArgument("mesh encoding " + std::to_string(encoding) + " is not DRACO (0) or RAW (1)");
   VD_RETURN_IF_ERROR(draco.Validate());
@@ -372,8 +372,7 @@ StatusOr<vdeform::mesh_t> MeshToMessage(const TriangleMesh& mesh, int64_t utime,
 }
 
 StatusOr<TriangleMesh> MessageToMesh(const vdeform::mesh_t& msg) {
-  if (msg.kind != vdeform::mesh_t::KIND_LIVE && msg.kind != vdeform::mesh_t::KIND_CANONICAL)
-    return InvalidArgument("mesh_t.kind = " + std::to_string(msg.kind) + " is unknown");
+  if (!KnownMeshKind(msg.kind)) return InvalidArgument("mesh_t.kind = " + std::to_string(msg.kind) + " is unknown");
   if (msg.encoding != vdeform::mesh_t::ENCODING_DRACO && msg.encoding != vdeform::mesh_t::ENCODING_RAW)
     return InvalidArgument("mesh_t.encoding = " + std::to_string(msg.encoding) + " is unknown");
   if (msg.data_size < 0 || static_cast<size_t>(msg.data_size) != msg.data.size())

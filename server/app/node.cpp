@@ -440,13 +440,25 @@ class Node::Impl {
       published_seq_ = job.seq;
     }
     PublishMeshes(false);
-    if (!options_.save_dir.empty() && !job.result.tracked_mesh.triangles.empty()) {
-      // --track-mesh: numbered by the frame's sequence number (the node has no source index).
-      const Status s = WritePly(FramePath(options_.save_dir, job.seq, "tracked.ply"), job.result.tracked_mesh);
-      if (!s.ok() && tracked_write_failures_++ == 0) VD_LOG_ERROR << "cannot write the tracked mesh: " << s.ToString();
-    }
+    if (!job.result.tracked_mesh.triangles.empty()) OutputTracked(job.result.tracked_mesh, job.seq);
     RecordLatency(job.capture_utime);
     PublishStatus();
+  }
+
+  // --track-mesh: the frame's tracked mesh is published as KIND_TRACKED (before the status that
+  // names the frame) and, with --save-dir, written numbered by the frame's sequence number (the
+  // node has no source index).
+  void OutputTracked(const TriangleMesh& tracked, int64_t seq) {
+    auto msg = MeshToMessage(tracked, NowUs(), seq, vdeform::mesh_t::KIND_TRACKED);
+    if (msg.ok()) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      PublishOutput(channels_.mesh, &*msg, &SignMesh);
+    } else if (tracked_encode_failures_++ == 0) {
+      VD_LOG_ERROR << "cannot encode the tracked mesh: " << msg.status().ToString();
+    }
+    if (options_.save_dir.empty()) return;
+    const Status s = WritePly(FramePath(options_.save_dir, seq, "tracked.ply"), tracked);
+    if (!s.ok() && tracked_write_failures_++ == 0) VD_LOG_ERROR << "cannot write the tracked mesh: " << s.ToString();
   }
 
   // Serve's output thread: runs Output for each job until stopped with nothing left.
@@ -582,6 +594,7 @@ class Node::Impl {
   int64_t sign_failures_ = 0;
   // Tracked meshes that could not be written to --save-dir (logged once).
   int64_t tracked_write_failures_ = 0;
+  int64_t tracked_encode_failures_ = 0;
   // Decides when the worker writes a checkpoint.
   CheckpointScheduler scheduler_;
   // Frames received are counted by the gate; these are what became of them after it.
@@ -695,7 +708,7 @@ int RunNode(const ServerOptions& options) {
     return 2;
   }
   if (options.tracks_mesh() && options.save_dir.empty())
-    VD_LOG_WARNING << "--track-mesh without --save-dir: the tracked meshes are not written";
+    VD_LOG_INFO << "--track-mesh without --save-dir: the tracked meshes are published (mesh_t KIND_TRACKED), not written";
   if (options.tracks_mesh() && !options.save_dir.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(options.save_dir, ec);

@@ -28,8 +28,10 @@ void ServerOptions::Register(FlagParser* f) {
          "DIR");
   f->Add("stats-json", &stats_json, "Write per-stage timing statistics, fps and peak memory", "FILE");
   f->AddSwitch("track-mesh", &track_mesh,
-               "With --save-dir, also write frame-%06d.tracked.ply: the first frame's mesh deformed by the current field, "
-               "in that frame's camera coordinates, with the same vertices and faces in every frame");
+               "Track a fixed-topology mesh: the first frame's mesh deformed by the current field, in that frame's camera "
+               "coordinates, with the same vertices and faces in every frame. With --save-dir it is written as "
+               "frame-%06d.tracked.ply; a node (no --input) also publishes it on the mesh channel as mesh_t "
+               "KIND_TRACKED for every processed frame");
   f->Add("track-mesh-from", &track_mesh_from,
          "Track this PLY (canonical coordinates: the first frame's camera, metres) instead of the first frame's mesh "
          "(implies --track-mesh)",

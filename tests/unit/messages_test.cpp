@@ -189,6 +189,21 @@ TEST(MessagesTest, MeshRoundTripDracoAndRaw) {
   }
 }
 
+// A --track-mesh server's KIND_TRACKED mesh goes through like the others; kinds past it do not.
+TEST(MessagesTest, TrackedKindRoundTripsAndUnknownKindsAreRefused) {
+  const TriangleMesh mesh = Grid(6);
+  auto msg = MeshToMessage(mesh, 5, 9, vdeform::mesh_t::KIND_TRACKED, vdeform::mesh_t::ENCODING_RAW);
+  ASSERT_TRUE(msg.ok()) << msg.status().ToString();
+  EXPECT_EQ(int(msg->kind), int(vdeform::mesh_t::KIND_TRACKED));
+  auto out = MessageToMesh(*msg);
+  ASSERT_TRUE(out.ok()) << out.status().ToString();
+  EXPECT_EQ(out->positions, mesh.positions);
+  EXPECT_EQ(out->triangles, mesh.triangles);
+  EXPECT_FALSE(MeshToMessage(mesh, 5, 9, 3).ok());
+  msg->kind = 3;
+  EXPECT_FALSE(MessageToMesh(*msg).ok());
+}
+
 TEST(MessagesTest, EmptyMeshIsZeroBytes) {
   TriangleMesh points;
   points.positions = {1.f, 2.f, 3.f};

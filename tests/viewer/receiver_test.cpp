@@ -166,6 +166,34 @@ TEST_F(ReceiverTest, NoRequestWhenDisabled) {
   lcm_.unsubscribe(sub);
 }
 
+// Tracked meshes (a --track-mesh server) are counted and saved as frame-%06d.tracked.ply; they
+// never replace the live mesh on show.
+TEST_F(ReceiverTest, TrackedMeshesAreSavedNotShown) {
+  ScratchDir dir;
+  ReceiverOptions options;
+  options.save_dir = dir / "out";
+  auto receiver = Make(options);
+  ASSERT_TRUE(receiver);
+  PublishMesh(Grid(8, 1.0f, 30, 60, 220), 5, vdeform::mesh_t::KIND_LIVE);
+  PublishMesh(Grid(4, 1.2f, 200, 60, 20), 5, vdeform::mesh_t::KIND_TRACKED);
+  PublishMesh(Grid(4, 1.3f, 200, 60, 20), 6, vdeform::mesh_t::KIND_TRACKED);
+  Drain();
+  const ReceiverStats& stats = receiver->stats();
+  EXPECT_EQ(stats.meshes_decoded, 3);
+  EXPECT_EQ(stats.meshes_failed, 0);
+  EXPECT_EQ(stats.live_meshes, 1);
+  EXPECT_EQ(stats.tracked_meshes, 2);
+  EXPECT_EQ(stats.last_tracked_vertices, 25);
+  EXPECT_EQ(stats.last_live_vertices, 81);
+  EXPECT_EQ(receiver->live_seq(), 5);
+  EXPECT_EQ(receiver->version(), 1);
+  auto saved = ReadPly(options.save_dir + "/frame-000006.tracked.ply");
+  ASSERT_TRUE(saved.ok()) << saved.status().ToString();
+  EXPECT_EQ(saved->num_vertices(), 25u);
+  EXPECT_TRUE(fs::exists(options.save_dir + "/frame-000005.tracked.ply"));
+  EXPECT_NE(StatusLine(stats, std::nullopt).find("+2 tracked"), std::string::npos);
+}
+
 TEST_F(ReceiverTest, DecodesSavesPlyAndPngWithCanonicalColouring) {
   ScratchDir dir;
   ReceiverOptions options;

@@ -100,6 +100,8 @@ class Forwarder {
     vd::StatusOr<vdeform::mesh_t> msg = vd::DecodeLcm<vdeform::mesh_t>(buffer->data, buffer->data_size);
     if (!msg.ok()) return Refuse("malformed mesh_t", msg.status(), &meshes_refused_);
     if (!output_key_.empty() && !(Signed(*stream, *msg, "mesh", &meshes_unsigned_) && Known(*stream))) return;
+    // The page shows the live and canonical meshes; a --track-mesh server's tracked ones stay on LCM.
+    if (msg->kind == vdeform::mesh_t::KIND_TRACKED) return;
     vd::StatusOr<std::string> frame = vd::MeshFrame(*msg, *stream);
     if (!frame.ok()) return Refuse("unusable mesh", frame.status(), &meshes_refused_);
     bytes_ += static_cast<int64_t>(frame->size());

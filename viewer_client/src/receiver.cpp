@@ -165,6 +165,16 @@ void MeshReceiver::HandleMesh(const lcm::ReceiveBuffer* buffer) {
     return;
   }
   ++stats_.meshes_decoded;
+  if (msg->kind == vdeform::mesh_t::KIND_TRACKED) {
+    // Published once per frame, never as an answer to REQUEST_MESH: no repeats to skip.
+    ++stats_.tracked_meshes;
+    stats_.last_tracked_vertices = static_cast<int64_t>(mesh->num_vertices());
+    if (!options_.save_dir.empty()) {
+      Status written = WriteMeshPly(*mesh, FramePath(msg->seq, ".tracked.ply"));
+      if (!written.ok()) LogOnce("write", written);
+    }
+    return;
+  }
   const bool live = msg->kind == vdeform::mesh_t::KIND_LIVE;
   if (live ? (live_ && live_seq_ == msg->seq) : (canonical_ && canonical_seq_ == msg->seq)) {
     ++stats_.repeated_meshes;

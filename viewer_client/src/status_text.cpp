@@ -42,6 +42,7 @@ std::string StatusLine(const ReceiverStats& stats, const std::optional<vdeform::
   std::ostringstream os;
   os << "meshes " << stats.live_meshes;
   if (stats.canonical_meshes) os << " +" << stats.canonical_meshes << " canon";
+  if (stats.tracked_meshes) os << " +" << stats.tracked_meshes << " tracked";
   if (stats.meshes_failed) os << " failed " << stats.meshes_failed;
   if (stats.last_live_seq >= 0)
     os << " seq " << stats.last_live_seq << " (" << stats.last_live_triangles << " tri)";
@@ -139,7 +140,8 @@ std::string SummaryText(const ReceiverStats& stats, const std::optional<vdeform:
   std::ostringstream os;
   os << "vdeform-viewer summary\n";
   os << "  meshes received " << stats.mesh_messages << ": decoded " << stats.meshes_decoded << " (live "
-     << stats.live_meshes << ", canonical " << stats.canonical_meshes << ", repeats " << stats.repeated_meshes
+     << stats.live_meshes << ", canonical " << stats.canonical_meshes << ", tracked " << stats.tracked_meshes
+     << ", repeats " << stats.repeated_meshes
      << "), failed " << stats.meshes_failed << "\n";
   os << "  bytes " << stats.mesh_bytes << " (" << FormatBytes(stats.mesh_bytes) << ")\n";
   if (stats.last_live_seq >= 0)

@@ -40,8 +40,9 @@ void Bind(FlagParser* f, ViewerOptions* o) {
                });
   f->AddSwitch("headless", &o->headless, "Never open a window; print the status line instead.");
   f->AddCustom("save-dir", "DIR", "",
-               "Write each received mesh as DIR/frame-%06d.mesh.ply (LIVE, the frame's seq) and "
-               "DIR/frame-%06d.canonical.ply (CANONICAL); DIR is created if missing.",
+               "Write each received mesh as DIR/frame-%06d.mesh.ply (LIVE, the frame's seq), "
+               "DIR/frame-%06d.canonical.ply (CANONICAL) and DIR/frame-%06d.tracked.ply (TRACKED, from a server with "
+               "--track-mesh); DIR is created if missing.",
                [o](const std::string& v) {
                  if (v.empty()) return InvalidArgument("--save-dir needs a non-empty directory");
                  o->save_dir = v;

@@ -68,6 +68,11 @@ StatusOr<vdeform::rgbd_frame_t> FrameToMessage(const RgbdFrame& frame, const Fra
 // Validates every field (sizes, encodings, intrinsics, payload lengths) before decoding.
 StatusOr<RgbdFrame> MessageToFrame(const vdeform::rgbd_frame_t& msg);
 
+// LIVE, CANONICAL or TRACKED (mesh_t.lcm).
+inline bool KnownMeshKind(int8_t kind) {
+  return kind == vdeform::mesh_t::KIND_LIVE || kind == vdeform::mesh_t::KIND_CANONICAL ||
+         kind == vdeform::mesh_t::KIND_TRACKED;
+}
 StatusOr<vdeform::mesh_t> MeshToMessage(const TriangleMesh& mesh, int64_t utime, int64_t seq, int8_t kind,
                                         int8_t encoding = vdeform::mesh_t::ENCODING_DRACO,
                                         const DracoOptions& draco = {});

@@ -63,6 +63,10 @@ struct ReceiverStats {
   int64_t live_meshes = 0;
   // New CANONICAL meshes.
   int64_t canonical_meshes = 0;
+  // TRACKED meshes (a server with --track-mesh): saved with --save-dir, not shown.
+  int64_t tracked_meshes = 0;
+  // Vertex count of the latest tracked mesh (constant over a run).
+  int64_t last_tracked_vertices = 0;
   // Meshes whose kind and seq equal those already held: answers to some viewer's REQUEST_MESH.
   int64_t repeated_meshes = 0;
   // Wire bytes of all mesh messages.
