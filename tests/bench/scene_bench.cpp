@@ -21,6 +21,11 @@ int main(int argc, char** argv) {
             "Long takes: surface error, drift and the canonical model's truth every N frames (0 = at the end only)");
   flags.Add("feed-stride", &stride, "Feed every n-th frame (fast motion)");
   flags.AddSwitch("verbose", &verbose, "One line per frame");
+  std::string save_canonical;
+  flags.Add("save-canonical", &save_canonical,
+            "Write the last frame's canonical mesh here as a PLY coloured by each vertex's distance to the true "
+            "first-frame surface: green 0, yellow 2.5 mm, red 5 mm and beyond",
+            "FILE");
   if (auto exit_code = flags.ParseCommandLine(argc, argv, "vd_scene_bench", [&] { return options.Validate(); }))
     return *exit_code;
   vd::SetLogLevel(vd::LogLevel::kWarning);
@@ -31,6 +36,7 @@ int main(int argc, char** argv) {
   run.num_frames = options.synthetic_frames > 0 ? int(options.synthetic_frames) : 60;
   run.report_every = int(std::max<int64_t>(0, report_every));
   run.track_mesh = options.track_mesh;
+  run.save_canonical = save_canonical;
   run.stride = int(stride);
   run.verbose = verbose;
   run.device = options.device;

@@ -18,6 +18,7 @@
 #include "core/engine.h"
 #include "ocl/ocl.h"
 #include "vd/capture/synthetic.h"
+#include "vd/common/codecs.h"
 
 namespace vd::test {
 
@@ -71,6 +72,9 @@ struct SceneRun {
   int report_every = 0;
   // Track the first frame's mesh (Engine::TrackMesh) and measure it at the last frame.
   bool track_mesh = false;
+  // Where to write the last frame's canonical mesh as a PLY coloured by each vertex's distance to
+  // the true first-frame surface (empty: not written); see CanonicalErrorColours.
+  std::string save_canonical;
 };
 
 inline Eigen::Vector3f V(const TriangleMesh& m, size_t i) {
@@ -93,6 +97,19 @@ inline void CanonicalTruth(const TriangleMesh& canonical, const MeshDistance& gt
   const size_t k = std::min(d.size() - 1, size_t(0.9 * double(d.size())));
   std::nth_element(d.begin(), d.begin() + long(k), d.end());
   *p90_mm = d[k];
+}
+
+// Colours a canonical mesh by each vertex's distance to the true first-frame surface: green at 0,
+// yellow at 2.5 mm, red at 5 mm and beyond (the canonical-truth bound), so a viewer of the PLY sees
+// where wrong geometry grows.
+inline void CanonicalErrorColours(TriangleMesh* canonical, const MeshDistance& gt0) {
+  canonical->colors.resize(3 * canonical->num_vertices());
+  for (size_t i = 0; i < canonical->num_vertices(); ++i) {
+    const float t = std::min(1.f, 1000.f * gt0.Closest(V(*canonical, i)).distance / 5.f);
+    canonical->colors[3 * i + 0] = uint8_t(255.f * std::min(1.f, 2.f * t));
+    canonical->colors[3 * i + 1] = uint8_t(255.f * std::min(1.f, 2.f - 2.f * t));
+    canonical->colors[3 * i + 2] = 0;
+  }
 }
 
 inline double ProcessCpuMs() {
@@ -205,6 +222,11 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
                     out.last_nonrigid_mm);
       if (report || k == last)
         CanonicalTruth(r.canonical_mesh, gt0, &out.canonical_within_5mm, &out.canonical_p90_mm);
+      if (k == last && !run.save_canonical.empty()) {
+        TriangleMesh coloured = r.canonical_mesh;
+        CanonicalErrorColours(&coloured, gt0);
+        VD_RETURN_IF_ERROR(WritePly(run.save_canonical, coloured).WithContext("--save-canonical"));
+      }
       if (report) {
         TakeWindow w;
         w.last_frame = k;

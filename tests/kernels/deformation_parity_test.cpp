@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <random>
 
 #include "cpu_ref/cpu_ref.h"
@@ -74,6 +77,72 @@ TEST(DeformationParityTest, DeformVerticesIsTrilinearAndMatchesCpu) {
   m.num_vertices = grid.size();
   ASSERT_TRUE(ops.DeformVertices(dv, &m).ok());
   EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, m.positions, grid.size())), test::Flatten(ref), 1e-6f, 1e-6f));
+}
+
+// New members of the active set start where their optimised neighbours put them as rigid pieces:
+// under one rigid motion of the optimised half of the grid (a 75-degree turn, as at the ends of the
+// long bend), every extrapolated point lands exactly on that motion of its rest position (moving it
+// by the neighbours' mean displacement alone missed by 1.5 voxels). Device against CPU.
+TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesCpu) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const VdVolume vol = SmallVolume();
+  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  std::vector<vd_float4> pos(n), rot(n);
+  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  const Eigen::Vector3f axis = Eigen::Vector3f(0.3f, 1.f, -0.2f).normalized();
+  const Eigen::AngleAxisf turn(75.f * float(M_PI) / 180.f, axis);
+  const Eigen::Quaternionf q(turn);
+  const Eigen::Vector3f shift(0.02f, -0.01f, 0.03f);
+  auto moved = [&](int i) {
+    const Eigen::Vector3f r = turn * Eigen::Vector3f(pos[i].x, pos[i].y, pos[i].z) + shift;
+    return r;
+  };
+  // Optimised (w = 3): x < 9. The layer x = 9 enters the active set now; x = 10 has no optimised
+  // neighbour and stays as it is.
+  std::vector<int> list;
+  std::vector<Eigen::Vector3f> want(n);
+  for (int z = 0; z < vol.dim_z; ++z)
+    for (int y = 0; y < vol.dim_y; ++y)
+      for (int x = 0; x <= 10; ++x) {
+        const int i = x + vol.dim_x * (y + vol.dim_y * z);
+        want[i] = moved(i);
+        if (x < 9) {
+          pos[i] = VD_F4(want[i].x(), want[i].y(), want[i].z(), 3.f);
+          rot[i] = VD_F4(q.x(), q.y(), q.z(), q.w());
+        } else {
+          list.push_back(i);
+        }
+      }
+  std::vector<vd_float4> pos_ref = pos, rot_ref = rot;
+  cpu::Extrapolate(list.data(), int(list.size()), pos_ref.data(), rot_ref.data(), vol);
+  double worst = 0;
+  for (int i : list) {
+    const int x = i % vol.dim_x;
+    const Eigen::Vector3f got(pos_ref[i].x, pos_ref[i].y, pos_ref[i].z);
+    if (x == 9) {
+      worst = std::max(worst, double((got - want[i]).norm()));
+      EXPECT_EQ(pos_ref[i].w, 0.f);
+      EXPECT_NEAR(std::abs(rot_ref[i].w), std::abs(q.w()), 1e-6f);
+    } else {
+      EXPECT_EQ(pos_ref[i].x, pos[i].x);  // no optimised neighbour: kept
+      EXPECT_EQ(pos_ref[i].w, 0.f);
+    }
+  }
+  std::printf("worst extrapolated point %.3g m from the rigid motion (voxel %.3g m)\n", worst, vol.voxel_size);
+  EXPECT_LT(worst, 1e-5);
+
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_rot, rot.data(), n).ok());
+  DeviceActiveSet active;
+  active.list = test::ToDevice(ctx, list);
+  active.count = list.size();
+  ASSERT_TRUE(ops.Extrapolate(dv, active).ok());
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 0.f, 0.f));
 }
 
 }  // namespace

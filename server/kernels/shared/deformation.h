@@ -8,6 +8,7 @@
 #ifndef VD_DEFORMATION_H
 #define VD_DEFORMATION_H
 
+#include "svd3.h"
 #include "vd_types.h"
 
 VD_INLINE vd_float4 vd_rest_position(VdVolume vol, int x, int y, int z) {
@@ -43,9 +44,12 @@ VD_INLINE vd_float4 vd_deform_point(vd_float4 g, VD_GLOBAL const vd_float4* def_
   return acc;
 }
 
-/* A grid point entering the active set for the first time (never optimised: w == 0) takes the
- * mean displacement of its 26-neighbours that were optimised, and the rotation of the first such
- * neighbour, so it starts where the current deformation field puts it. Without optimised
+/* A grid point entering the active set for the first time (never optimised: w == 0) starts where
+ * its optimised 26-neighbours j put it as rigid pieces, the mean of t_j + R_j (t^_i - t^_j) (the
+ * ARAP prior's own prediction), with the rotation of the first such neighbour. Moving it by their
+ * mean displacement alone ignored their rotation: an error of 2 sin(a/2) per voxel for a local
+ * rotation a (~5 mm per 4 mm voxel at 75 degrees), so new surface near strongly rotated parts was
+ * fused at the wrong canonical place (docs/BENCHMARKS.md "Long takes"). Without optimised
  * neighbours it keeps its state. Returns 1 when the point was initialised. */
 VD_INLINE int vd_extrapolate_point(int gi, VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
                                    VdVolume vol, vd_float4* pos_out, vd_float4* rot_out) {
@@ -64,12 +68,13 @@ VD_INLINE int vd_extrapolate_point(int gi, VD_GLOBAL const vd_float4* def_pos, V
     int j = nx + vol.dim_x * (ny + vol.dim_y * nz);
     vd_float4 t = def_pos[j];
     if (!(t.w > 0.0f)) continue;
-    disp = disp + (t - vd_rest_position(vol, nx, ny, nz));
+    vd_float4 edge = VD_F4(-(float)dx * vol.voxel_size, -(float)dy * vol.voxel_size, -(float)dz * vol.voxel_size, 0.0f);
+    disp = disp + t + vd_quat_rotate(def_rot[j], edge);
     n += 1.0f;
     if (first < 0) first = j;
   }
   if (n == 0.0f) return 0;
-  vd_float4 p = vd_rest_position(vol, x, y, z) + disp / n;
+  vd_float4 p = disp / n;
   p.w = 0.0f;
   *pos_out = p;
   *rot_out = def_rot[first];

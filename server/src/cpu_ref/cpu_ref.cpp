@@ -61,6 +61,16 @@ void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, 
   for (int i = 0; i < n; ++i) out[i] = vd_deform_point(grid_pos[i], def_pos, vol);
 }
 
+void Extrapolate(const int* list, int n, vd_float4* def_pos, vd_float4* def_rot, VdVolume vol) {
+  std::vector<vd_float4> pos(n), rot(n);
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < n; ++k) vd_extrapolate_point(list[k], def_pos, def_rot, vol, &pos[k], &rot[k]);
+  for (int k = 0; k < n; ++k) {
+    def_pos[list[k]] = pos[k];
+    def_rot[list[k]] = rot[k];
+  }
+}
+
 McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* color, VdVolume vol) {
   const McTable& table = GetMcTable();
   const int n = vol.dim_x * vol.dim_y * vol.dim_z;

@@ -29,6 +29,9 @@ void IntegrateTsdfBricks(float* tsdf, float* weight, uint32_t* color, VdVolume v
 
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
 void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, VdVolume vol, vd_float4* out);
+// vd_extrapolate + vd_extrapolate_commit: the n listed grid points never optimised start from their
+// optimised neighbours (all computed from the field as given, then written).
+void Extrapolate(const int* list, int n, vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
 
 struct McMesh {
   // Vertex positions in grid units (x + t, y, z): cell and trilinear weights are implicit.
