@@ -53,6 +53,73 @@ TEST(TsdfParityTest, IntegrationMatchesCpuAndFindsTheSphere) {
   EXPECT_EQ(weight[at(0.f, 0.f, 0.95f)], 0.f);
 }
 
+// Non-rigid fusion of the active points at their deformed positions, on the device and the CPU:
+// a point optimised fewer than k_min times is not fused; one never fused before (weight 0) waits
+// for k_min_new; the deformation moves where a point samples the depth.
+TEST(TsdfParityTest, ActiveIntegrationMatchesCpuAndGatesNewSpaceLonger) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const VdCamera cam = test::TestCamera(160, 120);
+  const auto depth = test::SphereDepth(cam, 1.0f, 0.2f, 1.6f);
+  const auto colors = test::TestColors(cam);
+  const VdVolume vol = SphereVolume();
+  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  std::vector<float> tsdf(n, 1.f), weight(n, 0.f);
+  std::vector<uint32_t> color(n, 0u);
+  std::vector<vd_float4> pos(n), rot(n);
+  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  // Points along the line through the sphere's front pole (x = y = 0), z = 0.70 .. 0.82 m: all in
+  // front of the surface (0.8 m) or inside the truncation band behind it.
+  auto at = [&](int iz) { return int(32 + vol.dim_x * (32 + vol.dim_y * iz)); };
+  std::vector<int> list;
+  for (int iz = 2; iz <= 14; ++iz) list.push_back(at(iz));
+  ASSERT_GT(vol.truncation, 0.021f);
+  // Counts: below k_min (3) at iz 2, 3; between k_min and k_min_new (12) at 4..8; 12 at 9..14. Old
+  // space (weight 1 already) at odd iz, new space (weight 0) at even iz. The field moves the points
+  // at iz 12..14 3 cm towards the camera.
+  for (int iz = 2; iz <= 14; ++iz) {
+    const int i = at(iz);
+    pos[i].w = iz <= 3 ? 2.f : (iz <= 8 ? 5.f : 12.f);
+    if (iz % 2) weight[i] = 1.f;
+    if (iz >= 12) pos[i].z -= 0.03f;
+  }
+  const float k_min = 3.f, k_min_new = 12.f;
+  const VdPose T = test::IdentityPose();
+  std::vector<float> tsdf_ref = tsdf, weight_ref = weight;
+  std::vector<uint32_t> color_ref = color;
+  cpu::IntegrateActive(tsdf_ref.data(), weight_ref.data(), color_ref.data(), list.data(), int(list.size()), pos.data(),
+                       k_min, k_min_new, vol, cam, T, depth.data(), colors.data());
+  int fused = 0;
+  for (int iz = 2; iz <= 14; ++iz) {
+    const int i = at(iz);
+    const bool want = iz >= 4 && (iz % 2 == 1 || iz >= 9);
+    EXPECT_EQ(weight_ref[i], weight[i] + (want ? 1.f : 0.f)) << "iz " << iz;
+    fused += want;
+  }
+  EXPECT_EQ(fused, 8);  // iz 5, 7 (old, 5 optimisations) and 9..14
+  // Where the field moved it, a point samples the depth 3 cm nearer: iz 13 (0.81 m, old) is fused as
+  // a point at 0.78 m, the distance iz 10 (0.78 m, new) got, averaged with its weight-1 value 1.
+  EXPECT_NEAR(tsdf_ref[at(13)], 0.5f * (1.f + tsdf_ref[at(10)]), 1e-5f);
+  EXPECT_GT(tsdf_ref[at(10)], 0.3f);  // 2 cm in front of the surface
+
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
+  ASSERT_TRUE(ctx->Upload(dv.tsdf, tsdf.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.weight, weight.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.color, color.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
+  DeviceActiveSet active;
+  active.list = test::ToDevice(ctx, list);
+  active.count = list.size();
+  ASSERT_TRUE(
+      ops.IntegrateActive(dv, active, k_min, k_min_new, cam, T, test::ToDevice(ctx, depth), test::ToDevice(ctx, colors))
+          .ok());
+  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.tsdf, n), tsdf_ref, 1e-6f, 1e-5f));
+  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.weight, n), weight_ref, 0.f, 0.f));
+  EXPECT_EQ(test::FromDevice(ctx, dv.color, n), color_ref);
+}
+
 // Brick integration: the device's marking and integration against the CPU reference, then
 // against dense integration: identical inside the truncation band, the same mesh, a fraction
 // of the grid visited.

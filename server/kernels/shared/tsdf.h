@@ -61,12 +61,16 @@ VD_INLINE void vd_tsdf_integrate_row(VD_GLOBAL float* tsdf, VD_GLOBAL float* wei
 
 /* Non-rigid fusion (section 8) of active grid point gi at its deformed world position t (w = the
  * number of optimisations it took part in): fused only after at least k_min optimisations, so data
- * goes only where the deformation is well defined. */
+ * goes only where the deformation is well defined. A point never fused before (weight 0: space
+ * first seen now, such as the far side of a part that turned towards the camera) waits for
+ * k_min_new: its deformation started as an extrapolation, and data fused before it settles is
+ * geometry at the wrong canonical place that later frames cannot remove (docs/BENCHMARKS.md
+ * "Long takes"). */
 VD_INLINE void vd_tsdf_integrate_deformed(VD_GLOBAL float* tsdf, VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color,
-                                          int gi, vd_float4 t, float k_min, VdVolume vol, VdCamera cam,
-                                          VdPose world_to_cam, VD_GLOBAL const float* depth,
+                                          int gi, vd_float4 t, float k_min, float k_min_new, VdVolume vol,
+                                          VdCamera cam, VdPose world_to_cam, VD_GLOBAL const float* depth,
                                           VD_GLOBAL const vd_uint* rgba) {
-  if (t.w < k_min) return;
+  if (t.w < (weight[gi] > 0.0f ? k_min : k_min_new)) return;
   t.w = 1.0f;
   vd_tsdf_integrate_point(tsdf, weight, color, gi, vd_pose_apply(world_to_cam, t), vol, cam, depth, rgba);
 }

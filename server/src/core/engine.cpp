@@ -74,6 +74,9 @@ void EngineParams::Bind(FlagParser* f) {
                "Rigid tracking and fusion only: no deformation field (12 instead of 44 bytes per grid point), no "
                "non-rigid solve");
   f->Add("k-min", &k_min, "Grid points are fused non-rigidly only after taking part in this many optimisations");
+  f->Add("k-min-new", &k_min_new,
+         "... and grid points never fused before (space seen for the first time) only after this many (at least "
+         "--k-min)");
   f->Section("Depth preprocessing");
   f->AddNegation("no-bilateral", &bilateral, "Track on the unfiltered depth");
   f->Add("bilateral-radius", &bilateral_radius, "Radius of the bilateral filter, pixels");
@@ -150,6 +153,8 @@ Status EngineParams::Validate() const {
   if (!(corr_eps_d > 0.f && corr_eps_n > 0.f && corr_eps_n <= 2.f && corr_eps_v > 0.f && corr_eps_v <= 2.f))
     return ParamOutOfBounds("EngineParams", "corr_eps_*", corr_eps_d, "eps_d > 0, 0 < eps_n, eps_v <= 2");
   if (!(k_min >= 0.f && k_min <= 100.f)) return ParamOutOfBounds("EngineParams", "k_min", k_min, "0 <= k_min <= 100");
+  if (!(k_min_new >= 0.f && k_min_new <= 100.f))
+    return ParamOutOfBounds("EngineParams", "k_min_new", k_min_new, "0 <= k_min_new <= 100");
   VD_RETURN_IF_ERROR(solver.Validate());
   VD_RETURN_IF_ERROR(features.Validate());
   return Status::Ok();
@@ -689,7 +694,9 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   if (result.tracking_ok) {
     t0 = Clock::now();
     if (nonrigid) {
-      VD_RETURN_IF_ERROR(ops_.IntegrateActive(volume_, active_, params_.k_min, cam_, ToVdPose(pose_.inverse()),
+      VD_RETURN_IF_ERROR(ops_.IntegrateActive(volume_, active_, params_.k_min,
+                                              std::max(params_.k_min, params_.k_min_new), cam_,
+                                              ToVdPose(pose_.inverse()),
                                               depth_raw_m_, rgba_));
     } else {
       VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));

@@ -76,6 +76,10 @@ struct EngineParams {
   float corr_eps_v = 0.8f;
   // Grid points are fused only after taking part in this many optimisations (section 8).
   float k_min = 3.f;
+  // ... and points never fused before (new space: weight 0) only after this many. Measured on the
+  // long bend (docs/BENCHMARKS.md "Long takes"): new geometry fused after 3 optimisations, as the
+  // paper's K_min, is the duplicated surface section 8 warns of, grown at the parts that turn.
+  float k_min_new = 20.f;
   SolverParams solver;
   // Sparse colour features and E_sparse (section 5.2); used by the non-rigid solve only.
   FeatureParams features;

@@ -50,6 +50,15 @@ void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, Vd
     vd_tsdf_integrate_row(tsdf, weight, color, r % vol.dim_y, r / vol.dim_y, vol, cam, world_to_cam, depth, rgba);
 }
 
+void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* list, int n, const vd_float4* def_pos,
+                     float k_min, float k_min_new, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                     const float* depth, const uint32_t* rgba) {
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < n; ++k)
+    vd_tsdf_integrate_deformed(tsdf, weight, color, list[k], def_pos[list[k]], k_min, k_min_new, vol, cam,
+                               world_to_cam, depth, rgba);
+}
+
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol) {
   const int rows = vol.dim_y * vol.dim_z;
 #pragma omp parallel for schedule(static)

@@ -27,6 +27,12 @@ void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, Vd
 void IntegrateTsdfBricks(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
                          const float* depth, const uint32_t* rgba, std::vector<uint32_t>* flags);
 
+// Non-rigid fusion (vd_tsdf_integrate_active) of the n listed grid points at their deformed
+// positions, behind the k_min / k_min_new gates of shared/tsdf.h.
+void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* list, int n, const vd_float4* def_pos,
+                     float k_min, float k_min_new, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                     const float* depth, const uint32_t* rgba);
+
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
 void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, VdVolume vol, vd_float4* out);
 // vd_extrapolate + vd_extrapolate_commit: the n listed grid points never optimised start from their

@@ -104,10 +104,11 @@ class DeviceOps {
   Status Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
                          const ocl::Buffer<vd_float4>& obs_n, const DeviceMesh& mesh, const VdCorrParams& params,
                          ocl::Buffer<VdCorrespondence>& out);
-  // Initialises members of M never optimised from their optimised neighbours' displacement.
+  // Initialises members of M never optimised from their optimised neighbours as rigid pieces.
   Status Extrapolate(DeviceVolume& v, const DeviceActiveSet& active);
-  // Non-rigid fusion into the members of M optimised at least k_min times, at their deformed positions.
-  Status IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, float k_min, VdCamera cam,
+  // Non-rigid fusion into the members of M optimised at least k_min times (k_min_new for those never
+  // fused yet), at their deformed positions.
+  Status IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, float k_min, float k_min_new, VdCamera cam,
                          VdPose world_to_cam, const ocl::Buffer<float>& depth, const ocl::Buffer<uint32_t>& rgba);
   // M from the cell codes of the last MarchingCubes() call on v.
   Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out);
