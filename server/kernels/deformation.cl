@@ -14,6 +14,12 @@ __kernel void vd_deform_vertices(__global const float4* grid_pos, __global const
   out[i] = vd_deform_point(grid_pos[i], def_pos, vol);
 }
 
+/* One item per grid point. */
+__kernel void vd_field_rigid(__global float4* def_pos, __global float4* def_rot, VdPose a, float4 q_a, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_field_rigid_point(get_global_id(0), def_pos, def_rot, a, q_a);
+}
+
 /* Two passes so no work item reads a neighbour another is writing: compute, then commit. */
 __kernel void vd_extrapolate(__global const int* list, __global const float4* def_pos,
                              __global const float4* def_rot, VdVolume vol, __global float4* pos_out,

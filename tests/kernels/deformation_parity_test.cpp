@@ -145,5 +145,58 @@ TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesC
   EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 0.f, 0.f));
 }
 
+// Moving a rigid motion out of the field: every optimised point takes t' = A t and R' = q_A R,
+// points never optimised keep their rest state; device against CPU.
+TEST(DeformationParityTest, FieldRigidMovesOptimisedPointsAndMatchesCpu) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const VdVolume vol = SmallVolume();
+  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  std::vector<vd_float4> pos(n), rot(n);
+  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(-1.f, 1.f);
+  for (size_t i = 0; i < n; i += 3) {
+    pos[i] = pos[i] + VD_F4(0.01f * u(rng), 0.01f * u(rng), 0.01f * u(rng), 0.f);
+    pos[i].w = float(1 + i % 5);
+    const Eigen::Quaternionf r = Eigen::Quaternionf(Eigen::AngleAxisf(0.3f * u(rng), Eigen::Vector3f(u(rng), u(rng), 1.f).normalized()));
+    rot[i] = VD_F4(r.x(), r.y(), r.z(), r.w());
+  }
+  const Eigen::AngleAxisf turn(0.1f, Eigen::Vector3f(1.f, -0.5f, 0.2f).normalized());
+  const Eigen::Quaternionf qa(turn);
+  const Eigen::Matrix3f ra = turn.toRotationMatrix();
+  const Eigen::Vector3f ta(0.01f, 0.02f, -0.03f);
+  VdPose a;
+  a.r0 = VD_F4(ra(0, 0), ra(0, 1), ra(0, 2), ta.x());
+  a.r1 = VD_F4(ra(1, 0), ra(1, 1), ra(1, 2), ta.y());
+  a.r2 = VD_F4(ra(2, 0), ra(2, 1), ra(2, 2), ta.z());
+  const vd_float4 q = VD_F4(qa.x(), qa.y(), qa.z(), qa.w());
+  std::vector<vd_float4> pos_ref = pos, rot_ref = rot;
+  cpu::TransformField(pos_ref.data(), rot_ref.data(), int(n), a, q);
+  for (size_t i = 0; i < n; ++i) {
+    if (i % 3) {
+      ASSERT_EQ(pos_ref[i].x, pos[i].x) << i;
+      ASSERT_EQ(rot_ref[i].w, rot[i].w) << i;
+      continue;
+    }
+    const Eigen::Vector3f want = ra * Eigen::Vector3f(pos[i].x, pos[i].y, pos[i].z) + ta;
+    ASSERT_NEAR(pos_ref[i].x, want.x(), 1e-6f);
+    ASSERT_NEAR(pos_ref[i].y, want.y(), 1e-6f);
+    ASSERT_NEAR(pos_ref[i].z, want.z(), 1e-6f);
+    ASSERT_EQ(pos_ref[i].w, pos[i].w);
+    const Eigen::Quaternionf got(rot_ref[i].w, rot_ref[i].x, rot_ref[i].y, rot_ref[i].z);
+    const Eigen::Quaternionf composed = qa * Eigen::Quaternionf(rot[i].w, rot[i].x, rot[i].y, rot[i].z);
+    ASSERT_NEAR(std::abs(got.dot(composed)), 1.f, 1e-6f) << i;
+  }
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_rot, rot.data(), n).ok());
+  ASSERT_TRUE(ops.TransformField(dv, a, q).ok());
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 1e-6f, 1e-6f));
+}
+
 }  // namespace
 }  // namespace vd

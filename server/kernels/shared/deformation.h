@@ -81,4 +81,18 @@ VD_INLINE int vd_extrapolate_point(int gi, VD_GLOBAL const vd_float4* def_pos, V
   return 1;
 }
 
+/* Moves a rigid motion out of the field: grid point i (optimised: w > 0) takes t_i' = A t_i and
+ * R_i' = q_A R_i for the rigid A = (rotation q_A, rows of `a`), so that the camera pose taking
+ * A^-1 in leaves every deformed point where the camera sees it (Engine's rigid factoring). Points
+ * never optimised hold their rest positions and are left alone (extrapolation sets them). */
+VD_INLINE void vd_field_rigid_point(int gi, VD_GLOBAL vd_float4* def_pos, VD_GLOBAL vd_float4* def_rot, VdPose a,
+                                    vd_float4 q_a) {
+  vd_float4 t = def_pos[gi];
+  if (!(t.w > 0.0f)) return;
+  vd_float4 p = vd_pose_apply(a, t);
+  p.w = t.w;
+  def_pos[gi] = p;
+  def_rot[gi] = vd_quat_mul(q_a, def_rot[gi]);
+}
+
 #endif /* VD_DEFORMATION_H */

@@ -10,6 +10,7 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "ocl/solver_ocl.h"
 #include "vd/common/flags.h"
 #include "vd/common/log.h"
 
@@ -74,6 +75,9 @@ void EngineParams::Bind(FlagParser* f) {
                "Rigid tracking and fusion only: no deformation field (12 instead of 44 bytes per grid point), no "
                "non-rigid solve");
   f->Add("k-min", &k_min, "Grid points are fused non-rigidly only after taking part in this many optimisations");
+  f->Add("field-rigid-threshold", &field_rigid_threshold,
+         "Move the field's rigid part into the camera pose once it displaces the active points by this RMS, metres "
+         "(0: never)");
   f->Add("k-min-new", &k_min_new,
          "... and grid points never fused before (space seen for the first time) only after this many (at least "
          "--k-min)");
@@ -153,6 +157,8 @@ Status EngineParams::Validate() const {
   if (!(corr_eps_d > 0.f && corr_eps_n > 0.f && corr_eps_n <= 2.f && corr_eps_v > 0.f && corr_eps_v <= 2.f))
     return ParamOutOfBounds("EngineParams", "corr_eps_*", corr_eps_d, "eps_d > 0, 0 < eps_n, eps_v <= 2");
   if (!(k_min >= 0.f && k_min <= 100.f)) return ParamOutOfBounds("EngineParams", "k_min", k_min, "0 <= k_min <= 100");
+  if (!(field_rigid_threshold >= 0.f && field_rigid_threshold <= 1.f))
+    return ParamOutOfBounds("EngineParams", "field_rigid_threshold", field_rigid_threshold, "0 <= threshold <= 1 m");
   if (!(k_min_new >= 0.f && k_min_new <= 100.f))
     return ParamOutOfBounds("EngineParams", "k_min_new", k_min_new, "0 <= k_min_new <= 100");
   VD_RETURN_IF_ERROR(solver.Validate());
@@ -263,6 +269,7 @@ void Engine::Reset() {
   initialised_ = false;
   frames_fused_ = 0;
   frames_seen_ = 0;
+  frames_since_rigid_check_ = 0;
   history_.Clear();
   extractor_.Clear();
   matches_.clear();
@@ -571,6 +578,77 @@ Status Engine::ExtractMesh(FrameResult* result) {
   return Status::Ok();
 }
 
+Eigen::Matrix4d Engine::FieldRigidMotion(const std::vector<vd_float4>& deformed, const std::vector<int32_t>& list,
+                                         const VdVolume& vol, double* rms_motion, double* rms_residual) {
+  *rms_motion = 0.0;
+  *rms_residual = 0.0;
+  std::vector<Eigen::Vector3d> from, to;
+  for (size_t k = 0; k < list.size() && k < deformed.size(); ++k) {
+    if (!(deformed[k].w > 0.f) || list[k] < 0) continue;
+    const int x = list[k] % vol.dim_x, yz = list[k] / vol.dim_x;
+    const vd_float4 g = vd_rest_position(vol, x, yz % vol.dim_y, yz / vol.dim_y);
+    from.emplace_back(g.x, g.y, g.z);
+    to.emplace_back(deformed[k].x, deformed[k].y, deformed[k].z);
+  }
+  if (from.size() < 4) return Eigen::Matrix4d::Identity();
+  Eigen::Vector3d cf = Eigen::Vector3d::Zero(), ct = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < from.size(); ++i) {
+    cf += from[i];
+    ct += to[i];
+  }
+  cf /= double(from.size());
+  ct /= double(from.size());
+  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
+  for (size_t i = 0; i < from.size(); ++i) h += (from[i] - cf) * (to[i] - ct).transpose();
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
+  d(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
+  const Eigen::Matrix3d r = svd.matrixV() * d * svd.matrixU().transpose();
+  Eigen::Matrix4d a = Eigen::Matrix4d::Identity();
+  a.topLeftCorner<3, 3>() = r;
+  a.topRightCorner<3, 1>() = ct - r * cf;
+  double sum = 0.0, rest = 0.0;
+  for (size_t i = 0; i < from.size(); ++i) {
+    const Eigen::Vector3d moved = r * from[i] + a.topRightCorner<3, 1>();
+    sum += (moved - from[i]).squaredNorm();
+    rest += (to[i] - moved).squaredNorm();
+  }
+  *rms_motion = std::sqrt(sum / double(from.size()));
+  *rms_residual = std::sqrt(rest / double(from.size()));
+  return a;
+}
+
+Status Engine::FactorRigidMotion(FrameResult* result) {
+  // A camera's pose error builds up over seconds, so a check every kFieldRigidInterval frames
+  // keeps up with it; the move itself is a pass over the whole grid (~10 ms at 6 M points).
+  if (++frames_since_rigid_check_ < kFieldRigidInterval) return Status::Ok();
+  frames_since_rigid_check_ = 0;
+  const size_t m = active_.count;
+  if (m < 4) return Status::Ok();
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&factor_pos_, m));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&factor_rot_, m));
+  VD_RETURN_IF_ERROR(ocl::GatherState(*ctx_, m, active_.list, volume_.def_pos, volume_.def_rot, factor_pos_, factor_rot_));
+  factor_host_.resize(m);
+  factor_list_.resize(m);
+  VD_RETURN_IF_ERROR(ctx_->Download(factor_pos_, factor_host_.data(), m));
+  VD_RETURN_IF_ERROR(ctx_->Download(active_.list, factor_list_.data(), m));
+  double rms = 0.0, residual = 0.0;
+  const Eigen::Matrix4d a = FieldRigidMotion(factor_host_, factor_list_, volume_.vol, &rms, &residual);
+  // A field whose non-rigid rest is under half a voxel is a static scene's (its noise: 0.6-0.8 mm on
+  // the rigid scene at 4 mm); a deforming one (10-30 mm on the tube and the cloth) keeps its rigid
+  // part, so the pose stays the camera's there.
+  if (!(rms > params_.field_rigid_threshold && residual < 0.5 * volume_.vol.voxel_size)) return Status::Ok();
+  // t' = A^-1 t, R' = R_A^-1 R, and the pose A^-1 pose: the camera sees every point where it did.
+  const Eigen::Matrix4d a_inv = a.inverse();
+  const Eigen::Quaterniond q(Eigen::Matrix3d(a_inv.topLeftCorner<3, 3>()));
+  VD_RETURN_IF_ERROR(
+      ops_.TransformField(volume_, ToVdPose(a_inv), VD_F4(float(q.x()), float(q.y()), float(q.z()), float(q.w()))));
+  pose_ = a_inv * pose_;
+  result->pose = pose_;
+  ++rigid_factorings_;
+  return Status::Ok();
+}
+
 Status Engine::NonRigid(FrameResult* result) {
   // M from the surface extracted after the last frame; new members start from the field.
   VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_));
@@ -690,6 +768,11 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     history_.Compact(params_.features);
     result.feature_lift_ms = MsSince(t0);
     result.times[Stage::kFeatures] += result.feature_lift_ms;
+  }
+  if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0 && params_.field_rigid_threshold > 0.f) {
+    t0 = Clock::now();
+    VD_RETURN_IF_ERROR(FactorRigidMotion(&result));
+    result.times[Stage::kNonRigid] += MsSince(t0);
   }
   if (result.tracking_ok) {
     t0 = Clock::now();

@@ -76,6 +76,15 @@ struct EngineParams {
   float corr_eps_v = 0.8f;
   // Grid points are fused only after taking part in this many optimisations (section 8).
   float k_min = 3.f;
+  // Rigid motion in the field: every 30 frames, the rigid motion that best explains the active
+  // points' deformation is measured (Kabsch, rest -> deformed); when it moves them by more than
+  // this RMS (metres) while the non-rigid rest of the field is under half a voxel (a static
+  // scene), it is moved into the camera pose and out of the field, so the field keeps only the
+  // non-rigid part (paper section 4: global R, t, then the local deformation). Without it a static
+  // scene's field slowly takes up the camera's pose error (docs/BENCHMARKS.md "Long takes"); a
+  // deforming field (a bending object before a still camera) is left alone, so the pose stays the
+  // camera's. 0: never.
+  float field_rigid_threshold = 2e-4f;
   // ... and points never fused before (new space: weight 0) only after this many. Measured on the
   // long bend (docs/BENCHMARKS.md "Long takes"): new geometry fused after 3 optimisations, as the
   // paper's K_min, is the duplicated surface section 8 warns of, grown at the parts that turn.
@@ -201,6 +210,12 @@ class Engine {
 
   // Grid placement from the first frame's valid depth (exposed for tests).
   static StatusOr<VdVolume> PlaceVolume(const RgbdFrame& frame, const EngineParams& params);
+  // The rigid motion A (4x4, world -> world) that best maps the rest positions of the optimised
+  // points among `list` (grid indices) onto their deformed positions `deformed` (least squares,
+  // Kabsch), the RMS of |A g - g| over them in *rms_motion and of what A leaves, |t - A g|, in
+  // *rms_residual (both 0 with fewer than 4 points: the identity). Exposed for tests.
+  static Eigen::Matrix4d FieldRigidMotion(const std::vector<vd_float4>& deformed, const std::vector<int32_t>& list,
+                                          const VdVolume& vol, double* rms_motion, double* rms_residual);
 
  private:
   Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx);
@@ -209,6 +224,9 @@ class Engine {
   Status ExtractMesh(FrameResult* result);
   Status ExtractTracked(FrameResult* result);
   Status NonRigid(FrameResult* result);
+  // Moves the rigid part of the field into the camera pose once it exceeds
+  // EngineParams::field_rigid_threshold (the deformed surface stays where the camera sees it).
+  Status FactorRigidMotion(FrameResult* result);
   bool SparseEnabled() const;
 
   EngineParams params_;
@@ -216,6 +234,11 @@ class Engine {
   DeviceOps ops_;
   bool initialised_ = false;
   int64_t frames_fused_ = 0;
+  // Times FactorRigidMotion moved the field's rigid part into the pose, and frames since it last
+  // measured it (it does every kFieldRigidInterval frames).
+  int64_t rigid_factorings_ = 0;
+  int frames_since_rigid_check_ = 0;
+  static constexpr int kFieldRigidInterval = 30;
   DeviceVolume volume_;
   DeviceMesh mesh_;
   DeviceRaster model_;
@@ -228,6 +251,10 @@ class Engine {
   // Non-rigid state: the active set, the deformed mesh rendered at the current pose, the
   // per-pixel correspondences and the solver's buffers.
   DeviceActiveSet active_;
+  // FactorRigidMotion's gathered active state and its host copies.
+  ocl::Buffer<vd_float4> factor_pos_, factor_rot_;
+  std::vector<vd_float4> factor_host_;
+  std::vector<int32_t> factor_list_;
   DeviceRaster live_;
   ocl::Buffer<VdCorrespondence> corr_;
   std::unique_ptr<HierarchicalSolver> solver_;

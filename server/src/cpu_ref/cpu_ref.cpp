@@ -59,6 +59,11 @@ void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* lis
                                world_to_cam, depth, rgba);
 }
 
+void TransformField(vd_float4* def_pos, vd_float4* def_rot, int n, VdPose a, vd_float4 q_a) {
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) vd_field_rigid_point(i, def_pos, def_rot, a, q_a);
+}
+
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol) {
   const int rows = vol.dim_y * vol.dim_z;
 #pragma omp parallel for schedule(static)

@@ -34,6 +34,8 @@ void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* lis
                      const float* depth, const uint32_t* rgba);
 
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
+// vd_field_rigid over n grid points.
+void TransformField(vd_float4* def_pos, vd_float4* def_rot, int n, VdPose a, vd_float4 q_a);
 void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, VdVolume vol, vd_float4* out);
 // vd_extrapolate + vd_extrapolate_commit: the n listed grid points never optimised start from their
 // optimised neighbours (all computed from the field as given, then written).

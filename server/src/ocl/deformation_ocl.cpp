@@ -21,6 +21,11 @@ Status DeviceOps::DeformVertices(const DeviceVolume& v, DeviceMesh* mesh) {
   return ocl::kDeformVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, v.def_pos, v.vol, mesh->positions);
 }
 
+Status DeviceOps::TransformField(DeviceVolume& v, const VdPose& a, vd_float4 q_a) {
+  if (!v.has_deformation()) return FailedPrecondition("TransformField needs a deformation field");
+  return ocl::kFieldRigid(*ctx_, v.num_voxels(), v.def_pos, v.def_rot, a, q_a);
+}
+
 Status DeviceOps::Extrapolate(DeviceVolume& v, const DeviceActiveSet& active) {
   if (!v.has_deformation()) return FailedPrecondition("Extrapolate needs a deformation field");
   VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_pos_, std::max<size_t>(active.count, 1)));

@@ -104,6 +104,8 @@ class DeviceOps {
   Status Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
                          const ocl::Buffer<vd_float4>& obs_n, const DeviceMesh& mesh, const VdCorrParams& params,
                          ocl::Buffer<VdCorrespondence>& out);
+  // Applies the rigid motion a (rotation q_a) to every optimised grid point's position and rotation.
+  Status TransformField(DeviceVolume& v, const VdPose& a, vd_float4 q_a);
   // Initialises members of M never optimised from their optimised neighbours as rigid pieces.
   Status Extrapolate(DeviceVolume& v, const DeviceActiveSet& active);
   // Non-rigid fusion into the members of M optimised at least k_min times (k_min_new for those never
