@@ -78,6 +78,17 @@ class NodeTest : public ::testing::Test {
     EXPECT_TRUE(m.ok()) << m.status().ToString();
     return *m;
   }
+  // Publishes `f` as frame `seq` of source "test", lets the node process it, and takes its output.
+  void SendAndProcess(RgbdFrame f, int64_t seq) {
+    f.seq = seq;
+    f.source_id = "test";
+    auto m = FrameToMessage(f, FrameEncodeOptions());
+    ASSERT_TRUE(m.ok());
+    lcm_.publish(kFrameChannel, &*m);
+    Pump();
+    ASSERT_TRUE(node_->RunOnce());
+    Pump();
+  }
   const vdeform::server_status_t& Status() {
     node_->PublishStatusNow();
     Pump();
@@ -457,17 +468,7 @@ TEST_F(TrackedNodeTest, EveryFramePublishesTheTrackedMeshWithOneTopology) {
   auto scene = MakeSyntheticScene("tube", so);
   ASSERT_TRUE(scene.ok());
   const int kFrames = 4;
-  for (int64_t seq = 0; seq < kFrames; ++seq) {
-    RgbdFrame f = (*scene)->Render(int(6 * seq));
-    f.seq = seq;
-    f.source_id = "test";
-    auto m = FrameToMessage(f, FrameEncodeOptions());
-    ASSERT_TRUE(m.ok());
-    lcm_.publish(kFrameChannel, &*m);
-    Pump();
-    ASSERT_TRUE(node_->RunOnce());
-    Pump();
-  }
+  for (int64_t seq = 0; seq < kFrames; ++seq) SendAndProcess((*scene)->Render(int(6 * seq)), seq);
   std::vector<TriangleMesh> tracked, live;
   std::vector<int64_t> tracked_seq;
   for (const auto& msg : inbox_.meshes) {
@@ -542,15 +543,7 @@ TEST_F(NodeTest, TrackingFailureIsReportedAndResetStartsANewModel) {
   auto tube = MakeSyntheticScene("tube", so);
   auto cloth = MakeSyntheticScene("cloth", so);
   ASSERT_TRUE(tube.ok() && cloth.ok());
-  auto send = [&](RgbdFrame f, int64_t seq) {
-    f.seq = seq;
-    f.source_id = "test";
-    auto m = FrameToMessage(f, FrameEncodeOptions());
-    ASSERT_TRUE(m.ok());
-    lcm_.publish(kFrameChannel, &*m);
-    Pump();
-    ASSERT_TRUE(node_->RunOnce());
-  };
+  auto send = [&](RgbdFrame f, int64_t seq) { SendAndProcess(std::move(f), seq); };
   for (int k = 0; k < 3; ++k) send((*tube)->Render(k), k);
   EXPECT_EQ(Status().model_frames, 3);
   send((*cloth)->Render(30), 3);

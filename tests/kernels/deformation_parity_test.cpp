@@ -17,6 +17,14 @@ namespace {
 
 VdVolume SmallVolume() { return test::TestVolume(20, 16, 12, 0.01f, VD_F4(-0.1f, -0.08f, 0.5f, 1.f)); }
 
+// SmallVolume's field at rest (host copies): rest positions, identity rotations.
+struct RestField {
+  VdVolume vol = SmallVolume();
+  size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  std::vector<vd_float4> pos = std::vector<vd_float4>(n), rot = std::vector<vd_float4>(n);
+  RestField() { cpu::DeformationReset(pos.data(), rot.data(), vol); }
+};
+
 TEST(DeformationParityTest, ResetGivesRestPositionsAndIdentityRotations) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
@@ -42,10 +50,8 @@ TEST(DeformationParityTest, DeformVerticesIsTrilinearAndMatchesCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  const VdVolume vol = SmallVolume();
-  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
-  std::vector<vd_float4> pos(n), rot(n);
-  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  RestField field;
+  auto& [vol, n, pos, rot] = field;
   // An affine field t_i = A t^_i + b: trilinear interpolation reproduces it exactly.
   auto affine = [](vd_float4 p) {
     return VD_F4(1.1f * p.x + 0.2f * p.y + 0.01f, -0.1f * p.x + 0.9f * p.y + 0.3f * p.z, p.z + 0.05f * p.x - 0.02f, 0.f);
@@ -87,10 +93,8 @@ TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesC
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  const VdVolume vol = SmallVolume();
-  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
-  std::vector<vd_float4> pos(n), rot(n);
-  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  RestField field;
+  auto& [vol, n, pos, rot] = field;
   const Eigen::Vector3f axis = Eigen::Vector3f(0.3f, 1.f, -0.2f).normalized();
   const Eigen::AngleAxisf turn(75.f * float(M_PI) / 180.f, axis);
   const Eigen::Quaternionf q(turn);
@@ -151,10 +155,8 @@ TEST(DeformationParityTest, FieldRigidMovesOptimisedPointsAndMatchesCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  const VdVolume vol = SmallVolume();
-  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
-  std::vector<vd_float4> pos(n), rot(n);
-  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  RestField field;
+  auto& [vol, n, pos, rot] = field;
   std::mt19937 rng(9);
   std::uniform_real_distribution<float> u(-1.f, 1.f);
   for (size_t i = 0; i < n; i += 3) {

@@ -14,15 +14,21 @@ namespace {
 
 VdVolume SphereVolume() { return test::TestVolume(64, 64, 64, 0.01f, VD_F4(-0.32f, -0.32f, 0.68f, 1.f)); }
 
+// A sphere of radius 0.2 m centred 1 m in front of a 160x120 camera, and the grid around it.
+struct SphereView {
+  VdCamera cam = test::TestCamera(160, 120);
+  std::vector<float> depth = test::SphereDepth(cam, 1.0f, 0.2f, 1.6f);
+  std::vector<uint32_t> colors = test::TestColors(cam);
+  VdVolume vol = SphereVolume();
+  size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+};
+
 TEST(TsdfParityTest, IntegrationMatchesCpuAndFindsTheSphere) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  const VdCamera cam = test::TestCamera(160, 120);
-  const auto depth = test::SphereDepth(cam, 1.0f, 0.2f, 1.6f);
-  const auto colors = test::TestColors(cam);
-  const VdVolume vol = SphereVolume();
-  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  const SphereView view;
+  const auto& [cam, depth, colors, vol, n] = view;
   std::vector<float> tsdf(n, 1.f), weight(n, 0.f);
   std::vector<uint32_t> color(n, 0u);
   VdPose T = test::IdentityPose();
@@ -60,11 +66,8 @@ TEST(TsdfParityTest, ActiveIntegrationMatchesCpuAndGatesNewSpaceLonger) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  const VdCamera cam = test::TestCamera(160, 120);
-  const auto depth = test::SphereDepth(cam, 1.0f, 0.2f, 1.6f);
-  const auto colors = test::TestColors(cam);
-  const VdVolume vol = SphereVolume();
-  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  const SphereView view;
+  const auto& [cam, depth, colors, vol, n] = view;
   std::vector<float> tsdf(n, 1.f), weight(n, 0.f);
   std::vector<uint32_t> color(n, 0u);
   std::vector<vd_float4> pos(n), rot(n);
@@ -127,11 +130,8 @@ TEST(TsdfParityTest, BrickIntegrationMatchesCpuAndDenseInsideTheBand) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  const VdCamera cam = test::TestCamera(160, 120);
-  const auto depth = test::SphereDepth(cam, 1.0f, 0.2f, 1.6f);
-  const auto colors = test::TestColors(cam);
-  const VdVolume vol = SphereVolume();
-  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z;
+  const SphereView view;
+  const auto& [cam, depth, colors, vol, n] = view;
   // Camera turned 3 degrees about y and moved 1 cm: the marking's ray transform is exercised.
   VdPose T = test::IdentityPose();
   const float a = 3.f * float(M_PI) / 180.f;
