@@ -130,7 +130,7 @@ TEST_F(ViewerCliTest, ReplayedLogIsSavedAsPlyAndPng) {
   const ViewerRun run = RunViewer("--headless --lcm-url 'file://" + log + "?speed=0' --save-dir " + out +
                             " --png --png-size 160x120 --timeout 5");
   EXPECT_EQ(run.exit_code, 0) << run.output;
-  EXPECT_NE(run.output.find("meshes received 5: decoded 4 (live 3, canonical 1, repeats 0), failed 1"),
+  EXPECT_NE(run.output.find("meshes received 5: decoded 4 (live 3, canonical 1, tracked 0, repeats 0), failed 1"),
             std::string::npos)
       << run.output;
   EXPECT_NE(run.output.find("last live seq 2 (4 vertices, 2 triangles)"), std::string::npos) << run.output;
@@ -182,7 +182,7 @@ TEST_F(ViewerCliTest, KeyFileRefusesUnsignedOutput) {
   const ViewerRun run = RunViewer("--headless --quiet --lcm-url 'file://" + log + "?speed=0' --save-dir " + out +
                                   " --key-file " + key + " --timeout 5");
   EXPECT_EQ(run.exit_code, 0) << run.output;
-  EXPECT_NE(run.output.find("meshes received 5: decoded 0 (live 0, canonical 0, repeats 0), failed 1"),
+  EXPECT_NE(run.output.find("meshes received 5: decoded 0 (live 0, canonical 0, tracked 0, repeats 0), failed 1"),
             std::string::npos)
       << run.output;
   EXPECT_NE(run.output.find("refused under --key-file: meshes 4 unsigned, 0 bad signature, 0 replayed; status 1 "
