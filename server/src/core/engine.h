@@ -52,10 +52,11 @@ struct EngineParams {
   float icp_degeneracy = 5e-5f;
   // Correspondences farther apart than this are rejected, metres.
   float icp_max_distance = 0.10f;
-  // An ICP level stops when a step |xi| (radians and metres together) falls below this: 1e-5 is
-  // 0.01 mm or 0.0006 degrees, far under the sensor's noise, and on the synthetic scenes stops
-  // 18 % of the reductions earlier than 1e-6 with the same surface error and drift.
-  float icp_min_step = 1e-5f;
+  // An ICP level stops when a step |xi| (radians and metres together) falls below this: 5e-5 is
+  // 0.05 mm or 0.003 degrees, still far under the sensor's noise (~1 mm). On the synthetic scenes
+  // 1e-5 stopped 18 % of the reductions earlier than 1e-6, and 5e-5 another 18-27 % earlier than
+  // 1e-5, each with the same surface error and drift (docs/BENCHMARKS.md "Real time").
+  float icp_min_step = 5e-5f;
   // Correspondences whose normals differ by more than this are rejected, degrees.
   float icp_max_normal_angle_deg = 30.f;
   // Tracking fails when fewer pixels than this fraction of the valid ones are inliers ...
