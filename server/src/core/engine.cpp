@@ -585,36 +585,19 @@ Eigen::Matrix4d Engine::FieldRigidMotion(const std::vector<vd_float4>& deformed,
   std::vector<Eigen::Vector3d> from, to;
   for (size_t k = 0; k < list.size() && k < deformed.size(); ++k) {
     if (!(deformed[k].w > 0.f) || list[k] < 0) continue;
-    const int x = list[k] % vol.dim_x, yz = list[k] / vol.dim_x;
-    const vd_float4 g = vd_rest_position(vol, x, yz % vol.dim_y, yz / vol.dim_y);
+    int x, y, z;
+    vd_grid_coords(list[k], vol, &x, &y, &z);
+    const vd_float4 g = vd_rest_position(vol, x, y, z);
     from.emplace_back(g.x, g.y, g.z);
     to.emplace_back(deformed[k].x, deformed[k].y, deformed[k].z);
   }
   if (from.size() < 4) return Eigen::Matrix4d::Identity();
-  Eigen::Vector3d cf = Eigen::Vector3d::Zero(), ct = Eigen::Vector3d::Zero();
-  for (size_t i = 0; i < from.size(); ++i) {
-    cf += from[i];
-    ct += to[i];
-  }
-  cf /= double(from.size());
-  ct /= double(from.size());
-  Eigen::Matrix3d h = Eigen::Matrix3d::Zero();
-  for (size_t i = 0; i < from.size(); ++i) h += (from[i] - cf) * (to[i] - ct).transpose();
-  Eigen::JacobiSVD<Eigen::Matrix3d> svd(h, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  Eigen::Matrix3d d = Eigen::Matrix3d::Identity();
-  d(2, 2) = (svd.matrixV() * svd.matrixU().transpose()).determinant() < 0 ? -1.0 : 1.0;
-  const Eigen::Matrix3d r = svd.matrixV() * d * svd.matrixU().transpose();
-  Eigen::Matrix4d a = Eigen::Matrix4d::Identity();
-  a.topLeftCorner<3, 3>() = r;
-  a.topRightCorner<3, 1>() = ct - r * cf;
-  double sum = 0.0, rest = 0.0;
-  for (size_t i = 0; i < from.size(); ++i) {
-    const Eigen::Vector3d moved = r * from[i] + a.topRightCorner<3, 1>();
-    sum += (moved - from[i]).squaredNorm();
-    rest += (to[i] - moved).squaredNorm();
-  }
-  *rms_motion = std::sqrt(sum / double(from.size()));
-  *rms_residual = std::sqrt(rest / double(from.size()));
+  const Eigen::Map<const Eigen::Matrix3Xd> src(from[0].data(), 3, Eigen::Index(from.size()));
+  const Eigen::Map<const Eigen::Matrix3Xd> dst(to[0].data(), 3, Eigen::Index(to.size()));
+  const Eigen::Matrix4d a = Eigen::umeyama(src, dst, false);
+  const Eigen::Matrix3Xd moved = (a.topLeftCorner<3, 3>() * src).colwise() + a.topRightCorner<3, 1>();
+  *rms_motion = std::sqrt((moved - src).colwise().squaredNorm().mean());
+  *rms_residual = std::sqrt((dst - moved).colwise().squaredNorm().mean());
   return a;
 }
 
@@ -645,7 +628,6 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
       ops_.TransformField(volume_, ToVdPose(a_inv), VD_F4(float(q.x()), float(q.y()), float(q.z()), float(q.w()))));
   pose_ = a_inv * pose_;
   result->pose = pose_;
-  ++rigid_factorings_;
   return Status::Ok();
 }
 

@@ -213,7 +213,7 @@ class Engine {
   static StatusOr<VdVolume> PlaceVolume(const RgbdFrame& frame, const EngineParams& params);
   // The rigid motion A (4x4, world -> world) that best maps the rest positions of the optimised
   // points among `list` (grid indices) onto their deformed positions `deformed` (least squares,
-  // Kabsch), the RMS of |A g - g| over them in *rms_motion and of what A leaves, |t - A g|, in
+  // Eigen::umeyama without scale), the RMS of |A g - g| over them in *rms_motion and of what A leaves, |t - A g|, in
   // *rms_residual (both 0 with fewer than 4 points: the identity). Exposed for tests.
   static Eigen::Matrix4d FieldRigidMotion(const std::vector<vd_float4>& deformed, const std::vector<int32_t>& list,
                                           const VdVolume& vol, double* rms_motion, double* rms_residual);
@@ -235,9 +235,8 @@ class Engine {
   DeviceOps ops_;
   bool initialised_ = false;
   int64_t frames_fused_ = 0;
-  // Times FactorRigidMotion moved the field's rigid part into the pose, and frames since it last
-  // measured it (it does every kFieldRigidInterval frames).
-  int64_t rigid_factorings_ = 0;
+  // Frames since FactorRigidMotion last measured the field's rigid part (it does every
+  // kFieldRigidInterval frames).
   int frames_since_rigid_check_ = 0;
   static constexpr int kFieldRigidInterval = 30;
   DeviceVolume volume_;
