@@ -184,11 +184,12 @@ def main(build):
         wait_stats(cdp, tab1, lambda s: "meshes" in s, 20, "the page did not load")
 
         logger = run.start("logger", ["lcm-logger", f"--lcm-url={run.lcm}", "-q", "-f", f"{run.work}/session.lcm"])
-        # Lockstep at most 5 frames a second: a page on a loaded 2-core machine decodes a mesh in
-        # ~100-200 ms, and the bridge gives a page that falls behind only the newest mesh (by design;
+        # Lockstep at most 2 frames a second: a page on a loaded 2-core machine decodes and draws a
+        # mesh in ~100-200 ms, more when the host is busy (at 5 fps a fresh-clone run saw 5 of 8),
+        # and the bridge gives a page that falls behind only the newest mesh (by design;
         # WebServerTest covers that). This test is about the page showing what the server sent.
         capture = run.start("capture", [f"{build}/capture_client/vdeform-capture", "--source", "synthetic:tube",
-                                        "--count", str(FRAMES), "--lockstep", "--lockstep-timeout", "30", "--fps", "5",
+                                        "--count", str(FRAMES), "--lockstep", "--lockstep-timeout", "30", "--fps", "2",
                                         "--lcm-url", run.lcm, "--quiet"])
         if capture.wait(240) != 0:
             raise Failure(f"capture exited with {capture.returncode}")
