@@ -2,6 +2,7 @@
 #include "shared/features.h"
 #include "shared/icp.h"
 #include "shared/solver.h"
+#include "shared/tsdf.h"
 
 /* Reports the device's view of the shared struct sizes, checked against the host's in a test. */
 __kernel void vd_type_sizes(__global int* out, int vd_items) {
@@ -17,4 +18,5 @@ __kernel void vd_type_sizes(__global int* out, int vd_items) {
   out[8] = (int)sizeof(VdSolverWeights);
   out[9] = (int)sizeof(VdMatchBest);
   out[10] = (int)sizeof(VdMat3);
+  out[11] = (int)sizeof(VdFusionParams);
 }

@@ -87,12 +87,14 @@ TEST(TsdfParityTest, ActiveIntegrationMatchesCpuAndGatesNewSpaceLonger) {
     if (iz % 2) weight[i] = 1.f;
     if (iz >= 12) pos[i].z -= 0.03f;
   }
-  const float k_min = 3.f, k_min_new = 12.f;
+  VdFusionParams fp{};
+  fp.k_min = 3.f;
+  fp.k_min_new = 12.f;  // no carving: the points in front of the surface are fused as free space
   const VdPose T = test::IdentityPose();
   std::vector<float> tsdf_ref = tsdf, weight_ref = weight;
   std::vector<uint32_t> color_ref = color;
-  cpu::IntegrateActive(tsdf_ref.data(), weight_ref.data(), color_ref.data(), list.data(), int(list.size()), pos.data(),
-                       k_min, k_min_new, vol, cam, T, depth.data(), colors.data());
+  cpu::IntegrateActive(tsdf_ref.data(), weight_ref.data(), color_ref.data(), list.data(), int(list.size()), pos.data(), fp,
+                       vol, cam, T, depth.data(), colors.data());
   int fused = 0;
   for (int iz = 2; iz <= 14; ++iz) {
     const int i = at(iz);
@@ -116,11 +118,105 @@ TEST(TsdfParityTest, ActiveIntegrationMatchesCpuAndGatesNewSpaceLonger) {
   active.list = test::ToDevice(ctx, list);
   active.count = list.size();
   ASSERT_TRUE(
-      ops.IntegrateActive(dv, active, k_min, k_min_new, cam, T, test::ToDevice(ctx, depth), test::ToDevice(ctx, colors))
-          .ok());
+      ops.IntegrateActive(dv, active, fp, cam, T, test::ToDevice(ctx, depth), test::ToDevice(ctx, colors)).ok());
   EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.tsdf, n), tsdf_ref, 1e-6f, 1e-5f));
   EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.weight, n), weight_ref, 0.f, 0.f));
   EXPECT_EQ(test::FromDevice(ctx, dv.color, n), color_ref);
+}
+
+// Carving: a stale surface 8 cm in front of the sphere's pole (fused at full weight with a
+// deformation since corrected, or by a part that has moved) is unlearnt in a few frames where the
+// depth sees free space, and kept for many more without carving; the true surface is untouched,
+// and a point just outside the sphere's rim, whose own pixel sees the wall while its neighbours see
+// the sphere, is carved only when the window is a single pixel. Device and CPU agree.
+TEST(TsdfParityTest, CarvingUnlearnsStaleSurfaceOnlyWhereTheDepthSeesFreeSpace) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const SphereView view;
+  const auto& [cam, depth, colors, vol, n] = view;
+  ASSERT_FLOAT_EQ(vol.truncation, 0.04f);
+  auto at = [&](int ix, int iz) { return int(ix + vol.dim_x * (32 + vol.dim_y * iz)); };
+  auto z_of = [&](int iz) { return vol.origin.z + vol.voxel_size * float(iz); };
+  std::vector<float> tsdf(n, 1.f), weight(n, 0.f);
+  std::vector<uint32_t> color(n, 0u);
+  std::vector<vd_float4> pos(n), rot(n);
+  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  std::vector<int> list;
+  // The pole line x = y = 0: a stale surface at 0.72 m up to z = 0.76 m (iz 0..8), the true one
+  // (0.80 m) from 0.79 m (iz 11..14); all fused at the weight cap.
+  for (int iz = 0; iz <= 14; ++iz) {
+    if (iz == 9 || iz == 10) continue;
+    const int i = at(32, iz);
+    const float surface = iz <= 8 ? 0.72f : 0.80f;
+    tsdf[i] = std::clamp((surface - z_of(iz)) / vol.truncation, -1.f, 1.f);
+    weight[i] = vol.max_weight;
+    list.push_back(i);
+  }
+  // Just outside the rim: (0.21, 0, 1.0) m, stale surface.
+  const int rim = at(53, 32);
+  tsdf[rim] = -0.5f;
+  weight[rim] = vol.max_weight;
+  list.push_back(rim);
+  for (int i : list) pos[i].w = 12.f;
+  VdFusionParams fp{};
+  fp.k_min = 3.f;
+  fp.k_min_new = 20.f;
+  fp.carve_rate = 0.5f;
+  fp.carve_radius = 2;
+  const VdPose T = test::IdentityPose();
+
+  auto run = [&](VdFusionParams p, int frames, std::vector<float>* t, std::vector<float>* w) {
+    *t = tsdf;
+    *w = weight;
+    std::vector<uint32_t> c = color;
+    for (int k = 0; k < frames; ++k)
+      cpu::IntegrateActive(t->data(), w->data(), c.data(), list.data(), int(list.size()), pos.data(), p, vol, cam, T,
+                           depth.data(), colors.data());
+  };
+  std::vector<float> t_carve, w_carve, t_keep, w_keep;
+  VdFusionParams off = fp;
+  off.carve_rate = 0.f;
+  run(fp, 6, &t_carve, &w_carve);
+  run(off, 6, &t_keep, &w_keep);
+  for (int iz = 0; iz <= 7; ++iz) {  // free space: more than a band (4 cm) in front of 0.80 m
+    const int i = at(32, iz);
+    EXPECT_GT(t_carve[i], 0.f) << "iz " << iz << ": the stale surface is still there after carving";
+    // iz 0 (0.68 m) already says free space (tsdf 1): nothing to unlearn, its weight stays.
+    if (iz > 0) EXPECT_LT(w_carve[i], 8.f) << "iz " << iz;
+  }
+  EXPECT_EQ(w_carve[at(32, 0)], vol.max_weight);
+  // Without carving the stale crossing at 0.72 m survives: 0.73 and 0.75 m still inside.
+  EXPECT_LT(t_keep[at(32, 5)], -0.1f);
+  EXPECT_LT(t_keep[at(32, 7)], -0.55f);
+  for (int iz = 11; iz <= 14; ++iz) {  // the true surface's band: never carved
+    EXPECT_EQ(t_carve[at(32, iz)], t_keep[at(32, iz)]) << "iz " << iz;
+    EXPECT_EQ(w_carve[at(32, iz)], vol.max_weight) << "iz " << iz;
+  }
+  // The rim point: the 5x5 window reaches the sphere, so it is fused as free space at full weight;
+  // a 1-pixel window sees only the wall and carves it.
+  std::vector<float> t1, w1;
+  run(fp, 1, &t1, &w1);
+  EXPECT_EQ(w1[rim], vol.max_weight);
+  VdFusionParams single = fp;
+  single.carve_radius = 0;
+  std::vector<float> t0, w0;
+  run(single, 1, &t0, &w0);
+  EXPECT_EQ(w0[rim], 0.5f * vol.max_weight + 1.f);
+  EXPECT_EQ(w1[at(32, 3)], 0.5f * vol.max_weight + 1.f);
+
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
+  ASSERT_TRUE(ctx->Upload(dv.tsdf, tsdf.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.weight, weight.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.color, color.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
+  DeviceActiveSet active;
+  active.list = test::ToDevice(ctx, list);
+  active.count = list.size();
+  ASSERT_TRUE(ops.IntegrateActive(dv, active, fp, cam, T, test::ToDevice(ctx, depth), test::ToDevice(ctx, colors)).ok());
+  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.tsdf, n), t1, 1e-6f, 1e-5f));
+  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.weight, n), w1, 0.f, 0.f));
 }
 
 // Brick integration: the device's marking and integration against the CPU reference, then

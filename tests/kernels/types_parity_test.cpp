@@ -5,6 +5,7 @@
 #include "shared/features.h"
 #include "shared/icp.h"
 #include "shared/solver.h"
+#include "shared/tsdf.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -19,7 +20,7 @@ TEST(TypesParityTest, SharedStructSizesMatchOnHostAndDevice) {
   const std::vector<int> host = {int(sizeof(VdCamera)),       int(sizeof(VdPose)),          int(sizeof(VdVolume)),
                                  int(sizeof(VdIcpParams)),    int(sizeof(vd_float4)),       int(sizeof(VdCorrespondence)),
                                  int(sizeof(VdCorrParams)),   int(sizeof(VdLiftParams)),    int(sizeof(VdSolverWeights)),
-                                 int(sizeof(VdMatchBest)),    int(sizeof(VdMat3))};
+                                 int(sizeof(VdMatchBest)),    int(sizeof(VdMat3)),          int(sizeof(VdFusionParams))};
   auto out = ctx->Alloc<int32_t>(host.size());
   ASSERT_TRUE(out.ok());
   ASSERT_TRUE(kTypeSizes(*ctx, 1, *out).ok());

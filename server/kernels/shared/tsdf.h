@@ -59,20 +59,57 @@ VD_INLINE void vd_tsdf_integrate_row(VD_GLOBAL float* tsdf, VD_GLOBAL float* wei
   }
 }
 
+/* Non-rigid fusion parameters (EngineParams: --k-min, --k-min-new, --carve-rate, --carve-radius). */
+typedef struct {
+  /* Optimisations a grid point takes part in before it is fused (section 8's K_min), and before
+   * a point never fused before is (new space: its deformation started as an extrapolation). */
+  float k_min;
+  float k_min_new;
+  /* Carving: the share of its weight a fused grid point loses each frame the depth sees it as free
+   * space (0 = none), and the half-width in pixels of the window that must all agree. */
+  float carve_rate;
+  int carve_radius;
+} VdFusionParams;
+
+/* 1 when the depth says camera point p_cam lies in free space: every pixel of the
+ * (2 radius + 1)^2 window around its projection has valid depth more than one truncation band
+ * behind it. The window keeps silhouettes (a point on the object's rim that a slightly wrong
+ * deformation projects onto the background) and depth holes from carving the surface. */
+VD_INLINE int vd_depth_says_free(vd_float4 p_cam, int radius, VdCamera cam, VD_GLOBAL const float* depth,
+                                 float truncation) {
+  if (p_cam.z <= 0.0f) return 0;
+  int px = (int)floor(vd_project_u(cam, p_cam) + 0.5f), py = (int)floor(vd_project_v(cam, p_cam) + 0.5f);
+  if (px - radius < 0 || py - radius < 0 || px + radius >= cam.width || py + radius >= cam.height) return 0;
+  for (int y = py - radius; y <= py + radius; ++y)
+    for (int x = px - radius; x <= px + radius; ++x) {
+      float d = depth[y * cam.width + x];
+      if (!(d > 0.0f) || d - p_cam.z <= truncation) return 0;
+    }
+  return 1;
+}
+
 /* Non-rigid fusion (section 8) of active grid point gi at its deformed world position t (w = the
  * number of optimisations it took part in): fused only after at least k_min optimisations, so data
  * goes only where the deformation is well defined. A point never fused before (weight 0: space
  * first seen now, such as the far side of a part that turned towards the camera) waits for
  * k_min_new: its deformation started as an extrapolation, and data fused before it settles is
  * geometry at the wrong canonical place that later frames cannot remove (docs/BENCHMARKS.md
- * "Long takes"). */
+ * "Long takes"). Carving: a fused point that holds surface (tsdf < 1) where the depth sees free
+ * space first loses carve_rate of its weight, so geometry the scene no longer has (fused with a
+ * since-corrected deformation, or a part that moved) is unlearnt in a few frames rather than in
+ * max_weight / 2 of them. */
 VD_INLINE void vd_tsdf_integrate_deformed(VD_GLOBAL float* tsdf, VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color,
-                                          int gi, vd_float4 t, float k_min, float k_min_new, VdVolume vol,
-                                          VdCamera cam, VdPose world_to_cam, VD_GLOBAL const float* depth,
+                                          int gi, vd_float4 t, VdFusionParams fp, VdVolume vol, VdCamera cam,
+                                          VdPose world_to_cam, VD_GLOBAL const float* depth,
                                           VD_GLOBAL const vd_uint* rgba) {
-  if (t.w < (weight[gi] > 0.0f ? k_min : k_min_new)) return;
+  float w = weight[gi];
+  if (t.w < (w > 0.0f ? fp.k_min : fp.k_min_new)) return;
   t.w = 1.0f;
-  vd_tsdf_integrate_point(tsdf, weight, color, gi, vd_pose_apply(world_to_cam, t), vol, cam, depth, rgba);
+  vd_float4 p_cam = vd_pose_apply(world_to_cam, t);
+  if (fp.carve_rate > 0.0f && w > 0.0f && tsdf[gi] < 1.0f &&
+      vd_depth_says_free(p_cam, fp.carve_radius, cam, depth, vol.truncation))
+    weight[gi] = w * (1.0f - fp.carve_rate);
+  vd_tsdf_integrate_point(tsdf, weight, color, gi, p_cam, vol, cam, depth, rgba);
 }
 
 /* Bricks: 8^3 blocks of grid points, numbered x-fastest like the grid. Integration may run over

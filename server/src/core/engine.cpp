@@ -81,6 +81,11 @@ void EngineParams::Bind(FlagParser* f) {
   f->Add("k-min-new", &k_min_new,
          "... and grid points never fused before (space seen for the first time) only after this many (at least "
          "--k-min)");
+  f->Add("carve-rate", &carve_rate,
+         "Share of its weight a fused grid point holding surface loses each frame the depth sees it as free space "
+         "(0: no carving)");
+  f->Add("carve-radius", &carve_radius,
+         "Half-width in pixels of the depth window that must all see free space before a grid point is carved");
   f->Section("Depth preprocessing");
   f->AddNegation("no-bilateral", &bilateral, "Track on the unfiltered depth");
   f->Add("bilateral-radius", &bilateral_radius, "Radius of the bilateral filter, pixels");
@@ -161,6 +166,10 @@ Status EngineParams::Validate() const {
     return ParamOutOfBounds("EngineParams", "field_rigid_threshold", field_rigid_threshold, "0 <= threshold <= 1 m");
   if (!(k_min_new >= 0.f && k_min_new <= 100.f))
     return ParamOutOfBounds("EngineParams", "k_min_new", k_min_new, "0 <= k_min_new <= 100");
+  if (!(carve_rate >= 0.f && carve_rate < 1.f))
+    return ParamOutOfBounds("EngineParams", "carve_rate", carve_rate, "0 <= carve_rate < 1");
+  if (!(carve_radius >= 0 && carve_radius <= 8))
+    return ParamOutOfBounds("EngineParams", "carve_radius", carve_radius, "0 <= carve_radius <= 8");
   VD_RETURN_IF_ERROR(solver.Validate());
   VD_RETURN_IF_ERROR(features.Validate());
   return Status::Ok();
@@ -759,8 +768,12 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   if (result.tracking_ok) {
     t0 = Clock::now();
     if (nonrigid) {
-      VD_RETURN_IF_ERROR(ops_.IntegrateActive(volume_, active_, params_.k_min,
-                                              std::max(params_.k_min, params_.k_min_new), cam_,
+      VdFusionParams fp{};
+      fp.k_min = params_.k_min;
+      fp.k_min_new = std::max(params_.k_min, params_.k_min_new);
+      fp.carve_rate = params_.carve_rate;
+      fp.carve_radius = params_.carve_radius;
+      VD_RETURN_IF_ERROR(ops_.IntegrateActive(volume_, active_, fp, cam_,
                                               ToVdPose(pose_.inverse()),
                                               depth_raw_m_, rgba_));
     } else {

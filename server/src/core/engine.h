@@ -90,6 +90,11 @@ struct EngineParams {
   // long bend (docs/BENCHMARKS.md "Long takes"): new geometry fused after 3 optimisations, as the
   // paper's K_min, is the duplicated surface section 8 warns of, grown at the parts that turn.
   float k_min_new = 20.f;
+  // Carving (shared/tsdf.h): a fused point holding surface where the depth sees free space (every
+  // pixel of a (2 carve_radius + 1)^2 window more than a truncation band behind it) loses this share
+  // of its weight, so wrong geometry is unlearnt in a few frames instead of max_weight / 2.
+  float carve_rate = 0.5f;
+  int carve_radius = 2;
   SolverParams solver;
   // Sparse colour features and E_sparse (section 5.2); used by the non-rigid solve only.
   FeatureParams features;

@@ -7,6 +7,7 @@
 
 #include "shared/correspondence.h"
 #include "shared/icp.h"
+#include "shared/tsdf.h"
 #include "shared/vd_types.h"
 
 namespace vd::cpu {
@@ -28,9 +29,9 @@ void IntegrateTsdfBricks(float* tsdf, float* weight, uint32_t* color, VdVolume v
                          const float* depth, const uint32_t* rgba, std::vector<uint32_t>* flags);
 
 // Non-rigid fusion (vd_tsdf_integrate_active) of the n listed grid points at their deformed
-// positions, behind the k_min / k_min_new gates of shared/tsdf.h.
+// positions, behind the k_min / k_min_new gates of shared/tsdf.h, with its carving.
 void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* list, int n, const vd_float4* def_pos,
-                     float k_min, float k_min_new, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                     VdFusionParams fp, VdVolume vol, VdCamera cam, VdPose world_to_cam,
                      const float* depth, const uint32_t* rgba);
 
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);

@@ -8,6 +8,7 @@
 #include "ocl/ocl.h"
 #include "shared/correspondence.h"
 #include "shared/icp.h"
+#include "shared/tsdf.h"
 #include "shared/vd_types.h"
 
 namespace vd {
@@ -108,9 +109,9 @@ class DeviceOps {
   Status TransformField(DeviceVolume& v, const VdPose& a, vd_float4 q_a);
   // Initialises members of M never optimised from their optimised neighbours as rigid pieces.
   Status Extrapolate(DeviceVolume& v, const DeviceActiveSet& active);
-  // Non-rigid fusion into the members of M optimised at least k_min times (k_min_new for those never
-  // fused yet), at their deformed positions.
-  Status IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, float k_min, float k_min_new, VdCamera cam,
+  // Non-rigid fusion into the members of M optimised at least fp.k_min times (fp.k_min_new for those
+  // never fused yet), at their deformed positions, with carving (shared/tsdf.h).
+  Status IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, const VdFusionParams& fp, VdCamera cam,
                          VdPose world_to_cam, const ocl::Buffer<float>& depth, const ocl::Buffer<uint32_t>& rgba);
   // M from the cell codes of the last MarchingCubes() call on v.
   Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out);

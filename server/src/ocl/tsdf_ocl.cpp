@@ -30,12 +30,11 @@ Status DeviceOps::IntegrateTsdfDense(DeviceVolume& v, VdCamera cam, VdPose world
   return ocl::kTsdfIntegrate(*ctx_, v.num_rows(), v.tsdf, v.weight, v.color, v.vol, cam, world_to_cam, depth, rgba);
 }
 
-Status DeviceOps::IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, float k_min, float k_min_new,
+Status DeviceOps::IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, const VdFusionParams& fp,
                                   VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
                                   const ocl::Buffer<uint32_t>& rgba) {
   if (!v.has_deformation()) return FailedPrecondition("IntegrateActive needs a deformation field");
-  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, active.list, v.def_pos, k_min,
-                                   k_min_new, v.vol, cam, world_to_cam, depth, rgba);
+  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, active.list, v.def_pos, fp, v.vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd
