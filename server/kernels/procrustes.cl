@@ -2,17 +2,18 @@
 
 /* Rotation step of the flip-flop solver, exact: one work item per active grid point k replaces
  * R_k (a unit quaternion (x, y, z, w)) by the rotation fitted to its neighbours by SVD. */
-__kernel void vd_procrustes(__global const int* neighbours, __global const float4* t, __global const float4* t_hat,
-                            __global float4* rot, int vd_items) {
+__kernel void vd_procrustes(__global const int* neighbours, __global const float* edge_w, __global const float4* t,
+                            __global const float4* t_hat, __global float4* rot, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
-  rot[k] = vd_mat3_to_quat(vd_procrustes_rotation(vd_procrustes_covariance(k, neighbours, t, t_hat)));
+  rot[k] = vd_mat3_to_quat(vd_procrustes_rotation(vd_procrustes_covariance(k, neighbours, edge_w, t, t_hat)));
 }
 
 /* Rotation step, warm-started: `iterations` refinement steps from the R_k each point holds, for
  * VD_LANES consecutive points per work item (a kLaned launch). Each lane's covariance is gathered
  * on its own (its neighbours are anywhere in the set); the steps run on all lanes at once. */
-__kernel void vd_procrustes_refine_kernel(__global const int* neighbours, __global const float4* t,
+__kernel void vd_procrustes_refine_kernel(__global const int* neighbours, __global const float* edge_w,
+                                          __global const float4* t,
                                           __global const float4* t_hat, __global float4* rot, int iterations,
                                           int vd_items) {
   int base = (int)get_global_id(0) * VD_LANES;
@@ -23,7 +24,7 @@ __kernel void vd_procrustes_refine_kernel(__global const int* neighbours, __glob
   for (int l = 0; l < VD_LANES; ++l) {
     /* Lanes past the end repeat the last point and are not stored. */
     int k = min(base + l, vd_items - 1);
-    VdMat3 s = vd_procrustes_covariance(k, neighbours, t, t_hat);
+    VdMat3 s = vd_procrustes_covariance(k, neighbours, edge_w, t, t_hat);
     VD_UNROLL
     for (int i = 0; i < 9; ++i) sm[i][l] = s.m[i];
     /* A lane mask is all ones where true (select tests the top bit of vector lanes). */

@@ -125,6 +125,9 @@ int Main(int argc, char** argv) {
 
   auto dn = ctx->Alloc<int>(s.neighbours.size());
   auto dt = ctx->Alloc<vd_float4>(n), dth = ctx->Alloc<vd_float4>(n), drot = ctx->Alloc<vd_float4>(n);
+  auto dw = ctx->Alloc<float>(6 * size_t(n));
+  Check(dw.status());
+  Check(ctx->Fill(*dw, 1.f, 6 * size_t(n)));
   Check(dn.status());
   Check(dt.status());
   Check(dth.status());
@@ -137,16 +140,16 @@ int Main(int argc, char** argv) {
   // device, same run; the refinement starts from the exact answer, as the flip-flop's previous
   // half-step leaves it near the optimum (its cost does not depend on where it starts).
   std::vector<vd_float4> cpu_rot(n, VD_F4(0.f, 0.f, 0.f, 1.f)), ocl_rot(n), warm_rot(n);
-  auto cpu = [&] { cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, 0, cpu_rot.data()); };
+  auto cpu = [&] { cpu::Procrustes(s.neighbours.data(), nullptr, s.t.data(), s.t_hat.data(), n, 0, cpu_rot.data()); };
   auto ocl = [&] {
-    Check(ocl::FitRotations(*ctx, n, *dn, *dt, *dth, 0, *drot));
+    Check(ocl::FitRotations(*ctx, n, *dn, *dw, *dt, *dth, 0, *drot));
     Check(ctx->Finish());
   };
   cpu();
   ocl();  // builds the work-group variant outside the timing
   Check(ctx->Download(*drot, ocl_rot.data(), n));
   auto refine = [&] {
-    Check(ocl::FitRotations(*ctx, n, *dn, *dt, *dth, 2, *drot));
+    Check(ocl::FitRotations(*ctx, n, *dn, *dw, *dt, *dth, 2, *drot));
     Check(ctx->Finish());
   };
   refine();

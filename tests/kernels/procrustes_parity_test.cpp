@@ -79,12 +79,16 @@ struct BothRuns {
 BothRuns RunBoth(ocl::Context* ctx, const RandomSet& s, const std::vector<vd_float4>& rot, int iterations) {
   const int n = int(s.t.size());
   BothRuns out{rot, {}};
-  cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, iterations, out.cpu.data());
+  // Edge weights in [0.1, 1] (adaptive rigidity), the same on both sides.
+  std::vector<float> w(6 * size_t(n));
+  for (size_t i = 0; i < w.size(); ++i) w[i] = 0.1f + 0.9f * float((i * 37) % 101) / 100.f;
+  cpu::Procrustes(s.neighbours.data(), w.data(), s.t.data(), s.t_hat.data(), n, iterations, out.cpu.data());
   auto dn = test::ToDevice(ctx, s.neighbours);
+  auto dw = test::ToDevice(ctx, w);
   auto dt = test::ToDevice(ctx, s.t);
   auto dth = test::ToDevice(ctx, s.t_hat);
   auto drot = test::ToDevice(ctx, rot);
-  const Status run = ocl::FitRotations(*ctx, n, dn, dt, dth, iterations, drot);
+  const Status run = ocl::FitRotations(*ctx, n, dn, dw, dt, dth, iterations, drot);
   EXPECT_TRUE(run.ok()) << run.ToString();
   out.ocl = test::FromDevice(ctx, drot, n);
   return out;
@@ -141,7 +145,7 @@ TEST(ProcrustesParityTest, RefinedKernelMatchesCpuReferenceAndTheExactOptimum) {
   for (int k = 5; k < n; ++k) {
     VdMat3 u, v;
     vd_float4 sigma;
-    vd_svd3(vd_procrustes_covariance(k, s.neighbours.data(), s.t.data(), s.t_hat.data()), &u, &sigma, &v);
+    vd_svd3(vd_procrustes_covariance(k, s.neighbours.data(), nullptr, s.t.data(), s.t_hat.data()), &u, &sigma, &v);
     if (sigma.y < 0.1f * sigma.x) continue;
     a.push_back(r.cpu[k]);
     b.push_back(exact.cpu[k]);
@@ -207,9 +211,10 @@ TEST(ProcrustesParityTest, RecoversAGlobalRotationOnTheDevice) {
   auto dn = test::ToDevice(ctx, neighbours);
   auto dt = test::ToDevice(ctx, t);
   auto dth = test::ToDevice(ctx, t_hat);
+  auto dw = test::ToDevice(ctx, std::vector<float>(6 * size_t(n), 1.f));
   auto drot = ctx->Alloc<vd_float4>(n);
   ASSERT_TRUE(drot.ok());
-  ASSERT_TRUE(ocl::FitRotations(*ctx, n, dn, dt, dth, 0, *drot).ok());
+  ASSERT_TRUE(ocl::FitRotations(*ctx, n, dn, dw, dt, dth, 0, *drot).ok());
   const auto rot = test::FromDevice(ctx, *drot, n);
   std::vector<float> expect;
   for (int k = 0; k < n; ++k) expect.insert(expect.end(), {q.x, q.y, q.z, q.w});

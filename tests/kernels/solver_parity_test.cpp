@@ -103,6 +103,20 @@ IndependentBtb AssembleIndependently(const Problem& p, VdSolverWeights w) {
   return ref;
 }
 
+// Symmetric ARAP edge weights in [0.2, 1] (adaptive rigidity): w_kj = w_jk, from the pair.
+std::vector<float> EdgeWeights(const Problem& p) {
+  const int m = int(p.active.list.size());
+  std::vector<float> w(6 * size_t(m), 0.f);
+  for (int k = 0; k < m; ++k)
+    for (int j = 0; j < 6; ++j) {
+      const int nb = p.active.neighbours[6 * k + j];
+      if (nb < 0) continue;
+      const unsigned h = unsigned(std::min(k, nb)) * 2654435761u ^ unsigned(std::max(k, nb)) * 40503u;
+      w[6 * size_t(k) + j] = 0.2f + 0.8f * float(h % 1000u) / 999.f;
+    }
+  return w;
+}
+
 // The cached block of point k at offset o (0..26); zero outside M.
 Eigen::Matrix3d StoredBlock(const std::vector<float>& blocks, const std::vector<int>& nbr, int k, int o) {
   if (nbr[VD_BTB_BLOCKS * k + o] < 0) return Eigen::Matrix3d::Zero();
@@ -127,6 +141,8 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   auto d_list = ToDevice(ctx, p.active.list);
   auto d_compact = ToDevice(ctx, p.active.compact);
   auto d_nb = ToDevice(ctx, p.active.neighbours);
+  const std::vector<float> ew = EdgeWeights(p);
+  auto d_ew = ToDevice(ctx, ew);
   auto d_cons = ToDevice(ctx, p.cons);
   auto d_start = ToDevice(ctx, p.cell_start);
   auto d_moments = ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * m);
@@ -135,7 +151,7 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   auto d_rhs = ctx->Alloc<vd_float4>(m);
   auto d_inv = ctx->Alloc<VdMat3>(m);
   ASSERT_TRUE(d_moments.ok() && d_blocks.ok() && d_nbr.ok() && d_rhs.ok() && d_inv.ok());
-  ASSERT_TRUE(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_cons, d_start, w, *d_moments, *d_blocks,
+  ASSERT_TRUE(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_ew, d_cons, d_start, w, *d_moments, *d_blocks,
                             *d_nbr, *d_rhs, *d_inv)
                   .ok());
   const auto blocks = FromDevice(ctx, *d_blocks, size_t(VD_BTB_FLOATS) * m);
@@ -149,7 +165,7 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   std::vector<vd_float4> rhs_ref(m);
   std::vector<VdMat3> inv_ref(m);
   cpu::CellMoments(p.active.list.data(), p.vol, p.cons.data(), p.cell_start.data(), m, moments.data());
-  cpu::BtbAssemble(p.active.list.data(), p.active.compact.data(), p.vol, p.active.neighbours.data(),
+  cpu::BtbAssemble(p.active.list.data(), p.active.compact.data(), p.vol, p.active.neighbours.data(), ew.data(),
                    p.cell_start.data(), moments.data(), w, m, blocks_ref.data(), nbr_ref.data(), rhs_ref.data(),
                    inv_ref.data());
   EXPECT_EQ(nbr, nbr_ref);
@@ -167,8 +183,9 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   double worst_block = 0, largest_block = 0, worst_rhs = 0, worst_inv = 0;
   size_t nonzero_blocks = 0;
   for (int k = 0; k < m; ++k) {
-    int degree = 0;
-    for (int j = 0; j < 6; ++j) degree += p.active.neighbours[6 * k + j] >= 0;
+    double degree = 0;
+    for (int j = 0; j < 6; ++j)
+      if (p.active.neighbours[6 * k + j] >= 0) degree += ew[6 * size_t(k) + j];
     for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
       const int j = nbr[VD_BTB_BLOCKS * k + o];
       const Eigen::Matrix3d got = StoredBlock(blocks, nbr, k, o);
@@ -220,6 +237,8 @@ TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
   auto d_cons = ToDevice(ctx, p.cons);
   auto d_start = ToDevice(ctx, p.cell_start);
   auto d_d = ToDevice(ctx, d);
+  const std::vector<float> ew = EdgeWeights(p);
+  auto d_ew = ToDevice(ctx, ew);
   auto d_moments = ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * m);
   auto d_blocks = ctx->Alloc<float>(size_t(VD_BTB_FLOATS) * m);
   auto d_nbr = ctx->Alloc<int32_t>(size_t(VD_BTB_BLOCKS) * m);
@@ -227,16 +246,16 @@ TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
   auto d_inv = ctx->Alloc<VdMat3>(m);
   auto d_q = ctx->Alloc<vd_float4>(m);
   ASSERT_TRUE(d_moments.ok() && d_blocks.ok() && d_nbr.ok() && d_rhs.ok() && d_inv.ok() && d_q.ok());
-  ASSERT_TRUE(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_cons, d_start, w, *d_moments, *d_blocks,
+  ASSERT_TRUE(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_ew, d_cons, d_start, w, *d_moments, *d_blocks,
                             *d_nbr, *d_rhs, *d_inv)
                   .ok());
-  ASSERT_TRUE(ocl::ApplySystemCached(*ctx, m, d_nb, *d_blocks, *d_nbr, d_d, w, *d_q).ok());
+  ASSERT_TRUE(ocl::ApplySystemCached(*ctx, m, d_nb, d_ew, *d_blocks, *d_nbr, d_d, w, *d_q).ok());
   const auto q = FromDevice(ctx, *d_q, m);
   const auto blocks = FromDevice(ctx, *d_blocks, size_t(VD_BTB_FLOATS) * m);
   const auto nbr = FromDevice(ctx, *d_nbr, size_t(VD_BTB_BLOCKS) * m);
 
   std::vector<vd_float4> q_cpu(m);
-  cpu::ApplySystemCached(p.active.neighbours.data(), blocks.data(), nbr.data(), d.data(), w, m, q_cpu.data());
+  cpu::ApplySystemCached(p.active.neighbours.data(), ew.data(), blocks.data(), nbr.data(), d.data(), w, m, q_cpu.data());
   EXPECT_TRUE(AllClose(Flatten(q), Flatten(q_cpu), 1e-6f, 1e-5f));
 
   const IndependentBtb ref = AssembleIndependently(p, w);
@@ -248,7 +267,7 @@ TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
     want[k] += double(w.damping) * vec(k);
     for (int j = 0; j < 6; ++j) {
       const int nb = p.active.neighbours[6 * k + j];
-      if (nb >= 0) want[k] += 2.0 * w.w_reg * (vec(k) - vec(nb));
+      if (nb >= 0) want[k] += 2.0 * w.w_reg * ew[6 * size_t(k) + j] * (vec(k) - vec(nb));
     }
     const Eigen::Vector3d got(q[k].x, q[k].y, q[k].z);
     worst = std::max(worst, (got - want[k]).cwiseAbs().maxCoeff());
@@ -262,6 +281,81 @@ TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
 
 // One PCG iteration with its scalars on the device (dot partials, vd_pcg_scalars, update,
 // direction) against the same iteration in double precision on the host.
+// Adaptive rigidity's edge weights (vd_arap_edge_weights_kernel) on the device and the CPU: 1 for
+// a rigid motion of the whole set; for a set folded by 40 degrees about the plane x = 0, low on
+// the edges that straddle the fold, 1 away from it, never under the floor, and the same from
+// either end of an edge.
+TEST(SolverParityTest, ArapEdgeWeightsGiveWayAtAFoldOnly) {
+  VD_REQUIRE_OCL(ctx);
+  const Problem p = MakeProblem();
+  const int m = int(p.active.list.size());
+  const auto& nb = p.active.neighbours;
+  std::vector<vd_float4> rest(m);
+  for (int k = 0; k < m; ++k) {
+    int x, y, z;
+    vd_grid_coords(p.active.list[k], p.vol, &x, &y, &z);
+    rest[k] = vd_rest_position(p.vol, x, y, z);
+  }
+  auto rotate_y = [](float deg, vd_float4 v) {
+    const float a = deg * float(M_PI) / 180.f;
+    return VD_F4(std::cos(a) * v.x + std::sin(a) * v.z, v.y, -std::sin(a) * v.x + std::cos(a) * v.z, v.w);
+  };
+  auto quat_y = [](float deg) {
+    const float a = 0.5f * deg * float(M_PI) / 180.f;
+    return VD_F4(0.f, std::sin(a), 0.f, std::cos(a));
+  };
+  const float voxel = p.vol.voxel_size, scale2 = (0.3f * voxel) * (0.3f * voxel), floor_w = 0.1f;
+  auto run = [&](const std::vector<vd_float4>& x, const std::vector<vd_float4>& rot) {
+    std::vector<float> w_cpu(6 * size_t(m), -1.f);
+    cpu::ArapEdgeWeights(nb.data(), x.data(), rot.data(), rest.data(), m, scale2, floor_w, w_cpu.data());
+    auto d_w = ctx->Alloc<float>(6 * size_t(m));
+    EXPECT_TRUE(d_w.ok());
+    EXPECT_TRUE(ocl::ArapEdgeWeights(*ctx, m, ToDevice(ctx, nb), ToDevice(ctx, x), ToDevice(ctx, rot),
+                                     ToDevice(ctx, rest), scale2, floor_w, *d_w)
+                    .ok());
+    EXPECT_TRUE(AllClose(FromDevice(ctx, *d_w, 6 * size_t(m)), w_cpu, 1e-6f, 1e-5f));
+    return w_cpu;
+  };
+  // Rigid: 25 degrees about y and 3 cm along x.
+  std::vector<vd_float4> x(m), rot(m, quat_y(25.f));
+  for (int k = 0; k < m; ++k) x[k] = rotate_y(25.f, rest[k]) + VD_F4(0.03f, 0.f, 0.f, 0.f);
+  const std::vector<float> w_rigid = run(x, rot);
+  for (int k = 0; k < m; ++k)
+    for (int j = 0; j < 6; ++j)
+      if (nb[6 * k + j] >= 0) ASSERT_NEAR(w_rigid[6 * k + j], 1.f, 1e-4f) << k;
+  // Folded: the half x > 0 turned by 40 degrees about the y axis through the sphere's centre.
+  const vd_float4 c = VD_F4(0.002f, 0.f, 1.001f, 0.f);
+  for (int k = 0; k < m; ++k) {
+    const bool turned = rest[k].x > c.x;
+    x[k] = turned ? rotate_y(40.f, rest[k] - c) + c : rest[k];
+    x[k].w = 1.f;
+    rot[k] = turned ? quat_y(40.f) : quat_y(0.f);
+  }
+  const std::vector<float> w = run(x, rot);
+  int straddle = 0, away = 0;
+  for (int k = 0; k < m; ++k)
+    for (int j = 0; j < 6; ++j) {
+      const int n = nb[6 * k + j];
+      if (n < 0) {
+        EXPECT_EQ(w[6 * k + j], 0.f);
+        continue;
+      }
+      // The same edge seen from n: the opposite direction (directions come in +/- pairs).
+      EXPECT_EQ(nb[6 * n + (j ^ 1)], k);
+      EXPECT_FLOAT_EQ(w[6 * n + (j ^ 1)], w[6 * k + j]);
+      EXPECT_GE(w[6 * k + j], floor_w);
+      if ((rest[k].x > c.x) != (rest[n].x > c.x)) {
+        EXPECT_LT(w[6 * k + j], 0.5f) << "edge across the fold";
+        ++straddle;
+      } else if (std::fabs(rest[k].x - c.x) > 1.5f * voxel && std::fabs(rest[n].x - c.x) > 1.5f * voxel) {
+        EXPECT_NEAR(w[6 * k + j], 1.f, 1e-4f);
+        ++away;
+      }
+    }
+  EXPECT_GT(straddle, 50);
+  EXPECT_GT(away, 10 * straddle);
+}
+
 TEST(SolverParityTest, PcgScalarsUpdateAndDirectionMatchAHostIteration) {
   VD_REQUIRE_OCL(ctx);
   const int n = 5000, chunk = 256, groups = (n + chunk - 1) / chunk;

@@ -264,9 +264,11 @@ TEST(SolverGradientTest, ArapAndDataGradientsMatchCentralDifferences) {
     const float ang = 0.05f * std::sin(float(k));
     rot[k] = VD_F4(0.f, std::sin(ang / 2), 0.f, std::cos(ang / 2));
   }
+  const std::vector<float> uniform(6 * size_t(m), 1.f);
   auto arap = [&](const std::vector<vd_float4>& x) {
     double e = 0;
-    for (int k = 0; k < m; ++k) e += vd_arap_energy(k, p.list.data(), p.neighbours.data(), p.vol, x.data(), rot.data());
+    for (int k = 0; k < m; ++k)
+      e += vd_arap_energy(k, p.list.data(), p.neighbours.data(), uniform.data(), p.vol, x.data(), rot.data());
     return e;
   };
   auto dense = [&](const std::vector<vd_float4>& x) {

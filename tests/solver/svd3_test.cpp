@@ -200,7 +200,7 @@ Neighbourhood MakeNeighbourhood(const Eigen::Vector3d& centre, double h, const E
 }
 
 Eigen::Matrix3d PointRotation(const Neighbourhood& nb) {
-  const vd_float4 q = vd_procrustes_point(0, nb.neighbours.data(), nb.t.data(), nb.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
+  const vd_float4 q = vd_procrustes_point(0, nb.neighbours.data(), nullptr, nb.t.data(), nb.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
   EXPECT_NEAR(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w, 1.f, 1e-6f);
   EXPECT_GE(q.w, 0.f);
   return ToEigen(vd_quat_to_mat3(q));
@@ -273,7 +273,7 @@ TEST(ProcrustesTest, EqualsEigenSvdSolutionOnNoisyNeighbourhoods) {
     const double noise = 0.01 * std::pow(10.0, -3.0 * (pos(rng) + 1.0) / 2.0);
     const Neighbourhood nb = MakeNeighbourhood(Eigen::Vector3d(pos(rng), pos(rng), pos(rng)), 0.01, RandomRotation(rng),
                                                Eigen::Vector3d::Zero(), present, noise, rng);
-    const VdMat3 s = vd_procrustes_covariance(0, nb.neighbours.data(), nb.t.data(), nb.t_hat.data());
+    const VdMat3 s = vd_procrustes_covariance(0, nb.neighbours.data(), nullptr, nb.t.data(), nb.t_hat.data());
     Eigen::JacobiSVD<Eigen::Matrix3d> svd(ToEigen(s));
     const Eigen::Vector3d sv = svd.singularValues();
     reflections += ToEigen(s).determinant() < 0;
@@ -404,7 +404,7 @@ TEST(ProcrustesRefineTest, ConvergesToTheExactOptimumFromWarmStarts) {
       if (m & (1 << d)) present.push_back(d);
     const Neighbourhood nb = MakeNeighbourhood(Eigen::Vector3d(pos(rng), pos(rng), 1.0 + pos(rng)), 0.004,
                                                RandomRotation(rng), Eigen::Vector3d::Zero(), present, 0.0005, rng);
-    const VdMat3 s = vd_procrustes_covariance(0, nb.neighbours.data(), nb.t.data(), nb.t_hat.data());
+    const VdMat3 s = vd_procrustes_covariance(0, nb.neighbours.data(), nullptr, nb.t.data(), nb.t_hat.data());
     const Eigen::Vector3d sv = Eigen::JacobiSVD<Eigen::Matrix3d>(ToEigen(s)).singularValues();
     if (sv(1) < 0.1 * sv(0)) continue;
     ++cases;
@@ -450,7 +450,7 @@ TEST(ProcrustesRefineTest, DegenerateInputsKeepOrFollowTheWarmStart) {
   for (int i = 0; i < 500; ++i) {
     const Eigen::Matrix3d rot = RandomRotation(rng);
     const Neighbourhood nb = MakeNeighbourhood(Eigen::Vector3d(0.3, -0.2, 0.8), 0.01, rot, Eigen::Vector3d::Zero(), {2}, 0, rng);
-    const VdMat3 s = vd_procrustes_covariance(0, nb.neighbours.data(), nb.t.data(), nb.t_hat.data());
+    const VdMat3 s = vd_procrustes_covariance(0, nb.neighbours.data(), nullptr, nb.t.data(), nb.t_hat.data());
     std::normal_distribution<double> g(0.0, 1.0);
     const Eigen::Matrix3d start =
         Eigen::AngleAxisd(3.0 * M_PI / 180.0, Eigen::Vector3d(g(rng), g(rng), g(rng)).normalized()) * rot;
@@ -542,9 +542,9 @@ TEST(ProcrustesTest, CpuReferenceMatchesPointFunctionAndReportsThroughput) {
   const int n = int(s.t.size());
   ASSERT_GT(n, 150000);
   std::vector<vd_float4> rot(n);
-  cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, 0, rot.data());
+  cpu::Procrustes(s.neighbours.data(), nullptr, s.t.data(), s.t_hat.data(), n, 0, rot.data());
   for (int k = 0; k < n; k += 997) {
-    const vd_float4 q = vd_procrustes_point(k, s.neighbours.data(), s.t.data(), s.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
+    const vd_float4 q = vd_procrustes_point(k, s.neighbours.data(), nullptr, s.t.data(), s.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
     EXPECT_EQ(rot[k].x, q.x);
     EXPECT_EQ(rot[k].y, q.y);
     EXPECT_EQ(rot[k].z, q.z);
@@ -553,7 +553,7 @@ TEST(ProcrustesTest, CpuReferenceMatchesPointFunctionAndReportsThroughput) {
   double best = 1e30;
   for (int rep = 0; rep < 3; ++rep) {
     const auto t0 = std::chrono::steady_clock::now();
-    cpu::Procrustes(s.neighbours.data(), s.t.data(), s.t_hat.data(), n, 0, rot.data());
+    cpu::Procrustes(s.neighbours.data(), nullptr, s.t.data(), s.t_hat.data(), n, 0, rot.data());
     best = std::min(best, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
   }
   std::printf("cpu::Procrustes: %d points in %.2f ms = %.1f ms per million points (best of 3)\n", n, best,

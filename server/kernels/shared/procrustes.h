@@ -69,16 +69,20 @@ VD_INLINE VdMat3 vd_procrustes_rotation(VdMat3 s) {
   return r;
 }
 
-/* Cross-covariance S_k = Σ_j (t̂_k − t̂_j)(t_k − t_j)ᵀ over the neighbours of active point k. */
-VD_INLINE VdMat3 vd_procrustes_covariance(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_float4* t,
-                                          VD_GLOBAL const vd_float4* t_hat) {
+/* Cross-covariance S_k = Σ_j w_kj (t̂_k − t̂_j)(t_k − t_j)ᵀ over the neighbours of active point k,
+ * with the ARAP edge weights w_kj = edge_w[6k + j] (shared/solver.h vd_arap_edge_weights), or 1
+ * each when edge_w is null. */
+VD_INLINE VdMat3 vd_procrustes_covariance(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                                          VD_GLOBAL const vd_float4* t, VD_GLOBAL const vd_float4* t_hat) {
   vd_float4 tk = t[k];
   vd_float4 hk = t_hat[k];
   VdMat3 s = vd_mat3_zero();
   for (int d = 0; d < 6; ++d) {
     int j = neighbours[6 * k + d];
     if (j < 0) continue;
-    vd_mat3_add_outer(&s, hk - t_hat[j], tk - t[j]);
+    vd_float4 e = hk - t_hat[j];
+    if (edge_w) e = e * edge_w[6 * k + d];
+    vd_mat3_add_outer(&s, e, tk - t[j]);
   }
   return s;
 }
@@ -184,9 +188,10 @@ VD_INLINE vd_float4 vd_procrustes_refine(VdMat3 s, vd_float4 q, int iterations) 
 /* R_k of active point k as a unit quaternion (x, y, z, w), w >= 0: with iterations = 0 the exact
  * optimum by SVD (vd_procrustes_rotation), else vd_procrustes_refine from warm[k], the point's
  * current rotation. */
-VD_INLINE vd_float4 vd_procrustes_point(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_float4* t,
-                                        VD_GLOBAL const vd_float4* t_hat, vd_float4 warm, int iterations) {
-  VdMat3 s = vd_procrustes_covariance(k, neighbours, t, t_hat);
+VD_INLINE vd_float4 vd_procrustes_point(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                                        VD_GLOBAL const vd_float4* t, VD_GLOBAL const vd_float4* t_hat,
+                                        vd_float4 warm, int iterations) {
+  VdMat3 s = vd_procrustes_covariance(k, neighbours, edge_w, t, t_hat);
   if (iterations <= 0) return vd_mat3_to_quat(vd_procrustes_rotation(s));
   return vd_procrustes_refine(s, warm, iterations);
 }

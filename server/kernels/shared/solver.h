@@ -103,24 +103,36 @@ VD_INLINE vd_float4 vd_gather_constraints(int k, VD_GLOBAL const int* list, VD_G
   return acc;
 }
 
-/* (L d)_k: the degree times d_k minus the sum of the neighbours (the factor 2 w_r is applied by the caller). */
-VD_INLINE vd_float4 vd_laplacian_apply(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_float4* d) {
+/* (L d)_k of the edge-weighted graph Laplacian: sum_j w_kj (d_k - d_j) over the neighbours (the
+ * factor 2 w_r is applied by the caller). edge_w[6k + j] is the ARAP weight of edge (k, j),
+ * symmetric (vd_arap_edge_weights); 1 everywhere is the paper's uniform prior. */
+VD_INLINE vd_float4 vd_laplacian_apply(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                                       VD_GLOBAL const vd_float4* d) {
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   vd_float4 dk = d[k];
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
-    if (nb >= 0) acc = acc + (dk - d[nb]);
+    if (nb >= 0) acc = acc + (dk - d[nb]) * edge_w[6 * k + j];
   }
   acc.w = 0.0f;
   return acc;
 }
 
+/* sum_j w_kj over the neighbours of k: the Laplacian's diagonal. */
+VD_INLINE float vd_weighted_degree(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w) {
+  float deg = 0.0f;
+  for (int j = 0; j < 6; ++j)
+    if (neighbours[6 * k + j] >= 0) deg += edge_w[6 * k + j];
+  return deg;
+}
+
 /* A d at point k, given the constraint residuals r_c = vd_constraint_apply(c, d). */
 VD_INLINE vd_float4 vd_system_apply(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
-                                    VD_GLOBAL const int* neighbours, VD_GLOBAL const VdCorrespondence* cons,
+                                    VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                                    VD_GLOBAL const VdCorrespondence* cons,
                                     VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* r,
                                     VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
-  vd_float4 q = vd_laplacian_apply(k, neighbours, d) * (2.0f * w.w_reg) +
+  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, d) * (2.0f * w.w_reg) +
                 vd_gather_constraints(k, list, compact, vol, cons, cell_start, r, 0) * w.w_dense + d[k] * w.damping;
   q.w = 0.0f;
   return q;
@@ -216,7 +228,8 @@ VD_INLINE VdMat3 vd_mat3_inverse_spd(VdMat3 d) {
  * w_d) and the inverse of its diagonal block 2 w_r deg_k I + (B^T B)_kk + lambda I, from the
  * moments of the (up to 8) cells it is a corner of. */
 VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
-                                    VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_uint* cell_start,
+                                    VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                                    VD_GLOBAL const vd_uint* cell_start,
                                     VD_GLOBAL const float* moments, VdSolverWeights w, VD_GLOBAL float* blocks,
                                     VD_GLOBAL int* nbr, VdMat3* diag_inv) {
   int x, y, z;
@@ -250,9 +263,7 @@ VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL 
   }
   VD_GLOBAL float* out = blocks + (size_t)VD_BTB_FLOATS * (size_t)k;
   for (int i = 0; i < VD_BTB_FLOATS; ++i) out[i] = w.w_dense * acc[i];
-  int degree = 0;
-  for (int j = 0; j < 6; ++j) degree += neighbours[6 * k + j] >= 0;
-  float s = 2.0f * w.w_reg * (float)degree + w.damping;
+  float s = 2.0f * w.w_reg * vd_weighted_degree(k, neighbours, edge_w) + w.damping;
   /* The diagonal block is offset (0, 0, 0): b = 13. */
   const float* c = acc + 6 * 13;
   VdMat3 diag;
@@ -289,25 +300,26 @@ VD_INLINE vd_float4 vd_btb_apply(int k, VD_GLOBAL const float* blocks, VD_GLOBAL
 }
 
 /* A d at point k with the cached B^T B. */
-VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* blocks,
-                                           VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
-  vd_float4 q = vd_laplacian_apply(k, neighbours, d) * (2.0f * w.w_reg) + vd_btb_apply(k, blocks, nbr, d) +
+VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                                           VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
+                                           VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
+  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, d) * (2.0f * w.w_reg) + vd_btb_apply(k, blocks, nbr, d) +
                 d[k] * w.damping;
   q.w = 0.0f;
   return q;
 }
 
-/* The ARAP part of the right-hand side at point k: sum_j (R_k + R_j)(t^_k - t^_j) (times w_r by
- * the caller). It changes with the rotations, so it is recomputed every position step. R_k is
- * applied once, to the sum of the edges (7 rotations instead of 12). */
+/* The ARAP part of the right-hand side at point k: sum_j w_kj (R_k + R_j)(t^_k - t^_j) (times w_r
+ * by the caller). It changes with the rotations, so it is recomputed every position step. R_k is
+ * applied once, to the weighted sum of the edges (7 rotations instead of 12). */
 VD_INLINE vd_float4 vd_system_reg_rhs(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
-                                      VD_GLOBAL const vd_float4* rot) {
+                                      VD_GLOBAL const float* edge_w, VD_GLOBAL const vd_float4* rot) {
   vd_float4 reg = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   vd_float4 edges = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
     if (nb < 0) continue;
-    vd_float4 e = vd_neighbour_edge(j, vol.voxel_size);
+    vd_float4 e = vd_neighbour_edge(j, vol.voxel_size) * edge_w[6 * k + j];
     edges = edges + e;
     reg = reg + vd_quat_rotate(rot[nb], e);
   }
@@ -321,14 +333,13 @@ VD_INLINE vd_float4 vd_system_reg_rhs(int k, VD_GLOBAL const int* list, VdVolume
  * w_d sum_c alpha_ck n_c (w_c n_c . p_c) (returned) and the inverse of the 3x3 diagonal block
  * 2 w_r deg_k I + w_d sum_c w_c alpha_ck^2 n_c n_c^T + lambda I, the Jacobi preconditioner. */
 VD_INLINE vd_float4 vd_system_data_diag(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
-                                        VD_GLOBAL const int* neighbours, VD_GLOBAL const VdCorrespondence* cons,
+                                        VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                                        VD_GLOBAL const VdCorrespondence* cons,
                                         VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* targets,
                                         VdSolverWeights w, VdMat3* diag_inv) {
-  int degree = 0;
-  for (int j = 0; j < 6; ++j) degree += neighbours[6 * k + j] >= 0;
   VdMat3 diag = vd_mat3_zero();
   vd_float4 data = vd_gather_constraints(k, list, compact, vol, cons, cell_start, targets, &diag);
-  float s = 2.0f * w.w_reg * (float)degree + w.damping;
+  float s = 2.0f * w.w_reg * vd_weighted_degree(k, neighbours, edge_w) + w.damping;
   for (int a = 0; a < 9; ++a) diag.m[a] *= w.w_dense;
   diag.m[0] += s;
   diag.m[4] += s;
@@ -342,9 +353,10 @@ VD_INLINE vd_float4 vd_system_data_diag(int k, VD_GLOBAL const int* list, VD_GLO
 
 /* Right-hand side b_k = w_r reg_k + data_k + lambda x_prev_k, from the cached data part. */
 VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
-                                  VD_GLOBAL const vd_float4* rot, VD_GLOBAL const vd_float4* data_rhs,
-                                  VD_GLOBAL const vd_float4* x_prev, VdSolverWeights w) {
-  vd_float4 b = vd_system_reg_rhs(k, list, vol, neighbours, rot) * w.w_reg + data_rhs[k] + x_prev[k] * w.damping;
+                                  VD_GLOBAL const float* edge_w, VD_GLOBAL const vd_float4* rot,
+                                  VD_GLOBAL const vd_float4* data_rhs, VD_GLOBAL const vd_float4* x_prev,
+                                  VdSolverWeights w) {
+  vd_float4 b = vd_system_reg_rhs(k, list, vol, neighbours, edge_w, rot) * w.w_reg + data_rhs[k] + x_prev[k] * w.damping;
   b.w = 0.0f;
   return b;
 }
@@ -432,17 +444,42 @@ VD_INLINE float vd_constraint_energy(VdCorrespondence c, VD_GLOBAL const int* co
   return c.canonical.w * r * r;
 }
 
-VD_INLINE float vd_arap_energy(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* neighbours, VdVolume vol,
-                               VD_GLOBAL const vd_float4* x, VD_GLOBAL const vd_float4* rot) {
+VD_INLINE float vd_arap_energy(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* neighbours,
+                               VD_GLOBAL const float* edge_w, VdVolume vol, VD_GLOBAL const vd_float4* x,
+                               VD_GLOBAL const vd_float4* rot) {
   float e = 0.0f;
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
     if (nb < 0) continue;
     vd_float4 d = (x[k] - x[nb]) - vd_quat_rotate(rot[k], vd_neighbour_edge(j, vol.voxel_size));
     d.w = 0.0f;
-    e += vd_dot3(d, d);
+    e += edge_w[6 * k + j] * vd_dot3(d, d);
   }
   return e;
+}
+
+/* Adaptive rigidity (beyond the paper, whose section 10 names the uniform ARAP weight a
+ * limitation): the weights of point k's six edges from the strain of the current field,
+ * w_kj = max(floor, 1 / (1 + e_kj / scale^2)) with e_kj = (|r_kj|^2 + |r_jk|^2) / 2 and
+ * r_kj = (x_k - x_j) - R_k (t^_k - t^_j): the same formula from either end, so the weights are
+ * symmetric. Where the field bends sharply (the rotations change fast between neighbours), the
+ * prior gives way instead of smoothing the bend; a rigid part keeps weight 1. */
+VD_INLINE void vd_arap_edge_weights(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const vd_float4* x,
+                                    VD_GLOBAL const vd_float4* rot, VD_GLOBAL const vd_float4* t_hat, float scale2,
+                                    float floor_w, VD_GLOBAL float* edge_w) {
+  vd_float4 xk = x[k], hk = t_hat[k], qk = rot[k];
+  for (int j = 0; j < 6; ++j) {
+    int nb = neighbours[6 * k + j];
+    float w = 0.0f;
+    if (nb >= 0) {
+      vd_float4 dx = xk - x[nb], dh = hk - t_hat[nb];
+      vd_float4 r_kj = dx - vd_quat_rotate(qk, dh);
+      vd_float4 r_jk = vd_quat_rotate(rot[nb], dh) - dx;
+      float e = 0.5f * (vd_dot3(r_kj, r_kj) + vd_dot3(r_jk, r_jk));
+      w = fmax(floor_w, 1.0f / (1.0f + e / scale2));
+    }
+    edge_w[6 * k + j] = w;
+  }
 }
 
 #endif /* VD_SOLVER_H */

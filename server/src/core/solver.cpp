@@ -28,6 +28,10 @@ void SolverParams::Bind(FlagParser* f) {
          "Warm-started refinement steps per rotation step (0 = exact SVD each time)");
   f->Add("energy-interval", &energy_interval,
          "Solves between evaluations of the energy before and after the solve (status diagnostics; 1 = every frame)");
+  f->Add("adaptive-rigidity", &adaptive_rigidity,
+         "Adaptive rigidity: an ARAP edge's weight halves where the field's strain reaches this fraction of a voxel "
+         "(0: the paper's uniform weight)");
+  f->Add("rigidity-floor", &rigidity_floor, "Lowest ARAP edge weight adaptive rigidity may give");
   f->AddNegation("no-btb-cache-coarse", &cache_btb_coarse,
                  "Apply B^T B from the constraints on the coarse levels instead of caching its blocks");
   f->AddNegation("no-btb-cache-fine", &cache_btb_fine,
@@ -49,6 +53,10 @@ Status SolverParams::Validate() const {
   if (!(levels >= 1 && levels <= 5)) return ParamOutOfBounds("SolverParams", "levels", levels, "1 <= levels <= 5");
   if (!(coarse_flip_flop_iterations >= 0 && coarse_flip_flop_iterations <= 100))
     return ParamOutOfBounds("SolverParams", "coarse_flip_flop_iterations", coarse_flip_flop_iterations, "0 <= n <= 100");
+  if (!(adaptive_rigidity >= 0.f && adaptive_rigidity <= 10.f))
+    return ParamOutOfBounds("SolverParams", "adaptive_rigidity", adaptive_rigidity, "0 <= s <= 10 voxels");
+  if (!(rigidity_floor > 0.f && rigidity_floor <= 1.f))
+    return ParamOutOfBounds("SolverParams", "rigidity_floor", rigidity_floor, "0 < floor <= 1");
   return Status::Ok();
 }
 
@@ -68,9 +76,9 @@ VdSolverWeights DeviceSolver::Weights() const {
 Status DeviceSolver::Setup(const DeviceVolume& v, const DeviceActiveSet& active,
                            const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
   if (!v.has_deformation()) return FailedPrecondition("the solver needs a grid with a deformation field");
-  VD_RETURN_IF_ERROR(SetupConstraints(v.vol, active, per_pixel, num_pixels));
+  VD_RETURN_IF_ERROR(SetupLevel(v.vol, active, per_pixel, num_pixels, &v));
   rot_warm_ = true;
-  return ocl::GatherState(ops_->ctx(), m_, active.list, v.def_pos, v.def_rot, x_, rot_);
+  return Status::Ok();
 }
 
 Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0) {
@@ -91,6 +99,12 @@ Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0, const ocl::Buff
 
 Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
                                       const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
+  return SetupLevel(vol, active, per_pixel, num_pixels, nullptr);
+}
+
+Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& active,
+                                const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels,
+                                const DeviceVolume* field) {
   ocl::Context& ctx = ops_->ctx();
   vol_ = vol;
   active_ = &active;
@@ -101,6 +115,15 @@ Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_start_, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_of_, std::max<size_t>(num_pixels, 1)));
   VD_RETURN_IF_ERROR(ocl::RestPositions(ctx, m_, active.list, vol_, rest_));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&edge_w_, 6 * std::max<size_t>(m_, 1)));
+  if (field) VD_RETURN_IF_ERROR(ocl::GatherState(ctx, m_, active.list, field->def_pos, field->def_rot, x_, rot_));
+  if (field && params_.adaptive_rigidity > 0.f && m_ > 0) {
+    const float s = params_.adaptive_rigidity * vol.voxel_size;
+    VD_RETURN_IF_ERROR(
+        ocl::ArapEdgeWeights(ctx, m_, active.neighbours, x_, rot_, rest_, s * s, params_.rigidity_floor, edge_w_));
+  } else if (m_ > 0) {
+    VD_RETURN_IF_ERROR(ctx.Fill(edge_w_, 1.f, 6 * m_));
+  }
 
   // Counting sort of the constraints by cell.
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
@@ -117,11 +140,11 @@ Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet
     VD_RETURN_IF_ERROR(ctx.Reserve(&moments_, VD_CELL_MOMENT_FLOATS * std::max<size_t>(m_, 1)));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * std::max<size_t>(m_, 1)));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * std::max<size_t>(m_, 1)));
-    return ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, active.neighbours, cons_, cell_start_, Weights(),
+    return ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_, cell_start_, Weights(),
                          moments_, btb_, btb_nbr_, data_rhs_, diag_inv_);
   }
   VD_RETURN_IF_ERROR(ocl::ConstraintTargets(ctx, total, cons_, targets_));
-  return ocl::DataRhsAndDiagonal(ctx, m_, active.list, active.compact, vol_, active.neighbours, cons_, cell_start_,
+  return ocl::DataRhsAndDiagonal(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_, cell_start_,
                                  targets_, Weights(), data_rhs_, diag_inv_);
 }
 
@@ -137,9 +160,9 @@ Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float
   ocl::Context& ctx = ops_->ctx();
   const auto& a = *active_;
   const VdSolverWeights w = Weights();
-  if (cache_btb_) return ocl::ApplySystemCached(ctx, m_, a.neighbours, btb_, btb_nbr_, d, w, q);
+  if (cache_btb_) return ocl::ApplySystemCached(ctx, m_, a.neighbours, edge_w_, btb_, btb_nbr_, d, w, q);
   VD_RETURN_IF_ERROR(ocl::ConstraintResiduals(ctx, num_constraints_, cons_, a.compact, vol_, d, residuals_));
-  return ocl::ApplySystem(ctx, m_, a.list, a.compact, vol_, a.neighbours, cons_, cell_start_, residuals_, d, w, q);
+  return ocl::ApplySystem(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, cons_, cell_start_, residuals_, d, w, q);
 }
 
 StatusOr<int> DeviceSolver::PositionStep() {
@@ -148,7 +171,7 @@ StatusOr<int> DeviceSolver::PositionStep() {
   const VdSolverWeights w = Weights();
   const auto& a = *active_;
   VD_RETURN_IF_ERROR(ctx.Copy(x_, x_prev_, m_));
-  VD_RETURN_IF_ERROR(ocl::SystemRhs(ctx, m_, a.list, vol_, a.neighbours, rot_, data_rhs_, x_prev_, w, b_));
+  VD_RETURN_IF_ERROR(ocl::SystemRhs(ctx, m_, a.list, vol_, a.neighbours, edge_w_, rot_, data_rhs_, x_prev_, w, b_));
   // r = b - A x
   VD_RETURN_IF_ERROR(Apply(x_, r_));
   VD_RETURN_IF_ERROR(ocl::SubFrom(ctx, m_, b_, r_));
@@ -183,7 +206,7 @@ StatusOr<int> DeviceSolver::PositionStep() {
 Status DeviceSolver::RotationStep() {
   const int iterations = rot_warm_ ? params_.rotation_iterations : 0;
   rot_warm_ = true;
-  return ocl::FitRotations(ops_->ctx(), m_, active_->neighbours, x_, rest_, iterations, rot_);
+  return ocl::FitRotations(ops_->ctx(), m_, active_->neighbours, edge_w_, x_, rest_, iterations, rot_);
 }
 
 StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {
@@ -197,7 +220,7 @@ StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {
     VD_ASSIGN_OR_RETURN(ed, SumPartials(gc));
   }
   if (gp) {
-    VD_RETURN_IF_ERROR(ocl::ArapEnergyPartials(ctx, gp, active_->list, active_->neighbours, vol_, x_, rot_, int(m_),
+    VD_RETURN_IF_ERROR(ocl::ArapEnergyPartials(ctx, gp, active_->list, active_->neighbours, edge_w_, vol_, x_, rot_, int(m_),
                                                 kChunk, partials_));
     VD_ASSIGN_OR_RETURN(er, SumPartials(gp));
   }

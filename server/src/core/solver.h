@@ -42,6 +42,12 @@ struct SolverParams {
   // diagnostics only, each evaluation walks every constraint and point twice (~5 % of a frame).
   // 1 = every frame.
   int energy_interval = 10;
+  // Adaptive rigidity (shared/solver.h vd_arap_edge_weights; the paper's section 10 names the
+  // uniform ARAP weight a limitation): on the fine level each edge's weight falls as
+  // 1 / (1 + e / s^2) with the strain e of the field at the solve's start, s this fraction of
+  // the voxel, down to rigidity_floor; 0 = the paper's uniform weight.
+  float adaptive_rigidity = 0.f;
+  float rigidity_floor = 0.1f;
   Status Validate() const;
   // Registers a flag for every field; the fields' values now are the defaults --help shows.
   void Bind(FlagParser* flags);
@@ -62,7 +68,8 @@ class DeviceSolver {
   // B^T B from cached blocks (built in Setup) rather than from the constraints.
   DeviceSolver(DeviceOps* ops, const SolverParams& params, bool cache_btb);
 
-  // Groups the valid per-pixel constraints by cell and copies the active points' state.
+  // Groups the valid per-pixel constraints by cell and copies the active points' state (and, with
+  // adaptive rigidity, weighs the ARAP edges by its strain).
   Status Setup(const DeviceVolume& v, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
                size_t num_pixels);
   // The two halves of Setup for a grid level without a stored field (coarse levels): constraints
@@ -70,6 +77,8 @@ class DeviceSolver {
   // the first rotation step) or with the warm-start rotations rot0 (refined).
   Status SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
                           const ocl::Buffer<VdCorrespondence>& constraints, size_t n);
+  // The ARAP edge weights of the current solve (6 per active point; 1 = uniform).
+  const ocl::Buffer<float>& edge_weights() const { return edge_w_; }
   Status InitState(const ocl::Buffer<vd_float4>& x0);
   Status InitState(const ocl::Buffer<vd_float4>& x0, const ocl::Buffer<vd_float4>& rot0);
   // Position step: PCG from the current positions; returns the iterations used.
@@ -111,6 +120,12 @@ class DeviceSolver {
   ocl::Buffer<float> targets_;
   ocl::Buffer<float> residuals_;
   ocl::Buffer<vd_float4> x_, x_prev_, rot_, rest_, b_, r_, z_, p_, q_;
+  // ARAP weight of each point's six edges, fixed per solve: 1, or from the field's strain
+  // (adaptive rigidity, fine level only).
+  ocl::Buffer<float> edge_w_;
+  // SetupConstraints with, on the fine level, the field the state is gathered from.
+  Status SetupLevel(const VdVolume& vol, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
+                    size_t num_pixels, const DeviceVolume* field);
   // rot_ holds rotations near the optimum (the stored field's or a previous rotation step's), so
   // the rotation step may refine them instead of solving from scratch.
   bool rot_warm_ = false;

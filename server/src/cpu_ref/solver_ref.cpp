@@ -8,18 +8,25 @@ void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, co
   for (int k = 0; k < m; ++k) vd_cell_moments(k, list, vol, cons, cell_start, moments);
 }
 
-void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const vd_uint* cell_start,
+void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const float* edge_w,
+                 const vd_uint* cell_start,
                  const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr, vd_float4* data_rhs,
                  VdMat3* diag_inv) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k)
-    data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, cell_start, moments, w, blocks, nbr, &diag_inv[k]);
+    data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, cell_start, moments, w, blocks, nbr, &diag_inv[k]);
 }
 
-void ApplySystemCached(const int* neighbours, const float* blocks, const int* nbr, const vd_float4* d,
+void ApplySystemCached(const int* neighbours, const float* edge_w, const float* blocks, const int* nbr, const vd_float4* d,
                        VdSolverWeights w, int m, vd_float4* q) {
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, neighbours, blocks, nbr, d, w);
+  for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, neighbours, edge_w, blocks, nbr, d, w);
+}
+
+void ArapEdgeWeights(const int* neighbours, const vd_float4* x, const vd_float4* rot, const vd_float4* t_hat, int m,
+                     float scale2, float floor_w, float* edge_w) {
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k) vd_arap_edge_weights(k, neighbours, x, rot, t_hat, scale2, floor_w, edge_w);
 }
 
 }  // namespace vd::cpu
