@@ -136,6 +136,7 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   w.w_dense = 1.3f;
   w.w_reg = 2.f;
   w.damping = 2e-4f;
+  w.weighted_edges = 1;  // the edge weights below are not all 1
 
   // Device.
   auto d_list = ToDevice(ctx, p.active.list);
@@ -226,6 +227,7 @@ TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
   w.w_dense = 0.8f;
   w.w_reg = 1.5f;
   w.damping = 3e-3f;
+  w.weighted_edges = 1;
   std::mt19937 rng(11);
   std::uniform_real_distribution<float> uni(-1.f, 1.f);
   std::vector<vd_float4> d(m);

@@ -22,7 +22,9 @@ typedef struct {
   float w_reg;
   /* Damping towards the current positions. */
   float damping;
-  int pad0;
+  /* 1: the ARAP edges carry their own weights (adaptive rigidity); 0: every weight is 1, and the
+   * PCG product, the hot loop, skips loading them. */
+  int weighted_edges;
 } VdSolverWeights;
 
 /* Grid coordinates of compact point k. */
@@ -107,9 +109,17 @@ VD_INLINE vd_float4 vd_gather_constraints(int k, VD_GLOBAL const int* list, VD_G
  * factor 2 w_r is applied by the caller). edge_w[6k + j] is the ARAP weight of edge (k, j),
  * symmetric (vd_arap_edge_weights); 1 everywhere is the paper's uniform prior. */
 VD_INLINE vd_float4 vd_laplacian_apply(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                       VD_GLOBAL const vd_float4* d) {
+                                       int weighted, VD_GLOBAL const vd_float4* d) {
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   vd_float4 dk = d[k];
+  if (!weighted) {
+    for (int j = 0; j < 6; ++j) {
+      int nb = neighbours[6 * k + j];
+      if (nb >= 0) acc = acc + (dk - d[nb]);
+    }
+    acc.w = 0.0f;
+    return acc;
+  }
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
     if (nb >= 0) acc = acc + (dk - d[nb]) * edge_w[6 * k + j];
@@ -132,7 +142,7 @@ VD_INLINE vd_float4 vd_system_apply(int k, VD_GLOBAL const int* list, VD_GLOBAL 
                                     VD_GLOBAL const VdCorrespondence* cons,
                                     VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* r,
                                     VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
-  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, d) * (2.0f * w.w_reg) +
+  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, w.weighted_edges, d) * (2.0f * w.w_reg) +
                 vd_gather_constraints(k, list, compact, vol, cons, cell_start, r, 0) * w.w_dense + d[k] * w.damping;
   q.w = 0.0f;
   return q;
@@ -303,7 +313,7 @@ VD_INLINE vd_float4 vd_btb_apply(int k, VD_GLOBAL const float* blocks, VD_GLOBAL
 VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
                                            VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
                                            VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
-  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, d) * (2.0f * w.w_reg) + vd_btb_apply(k, blocks, nbr, d) +
+  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, w.weighted_edges, d) * (2.0f * w.w_reg) + vd_btb_apply(k, blocks, nbr, d) +
                 d[k] * w.damping;
   q.w = 0.0f;
   return q;

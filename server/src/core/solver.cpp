@@ -70,6 +70,7 @@ VdSolverWeights DeviceSolver::Weights() const {
   w.w_dense = params_.w_dense;
   w.w_reg = params_.w_reg;
   w.damping = params_.damping * params_.w_reg;
+  w.weighted_edges = adaptive_ ? 1 : 0;
   return w;
 }
 
@@ -117,7 +118,8 @@ Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& acti
   VD_RETURN_IF_ERROR(ocl::RestPositions(ctx, m_, active.list, vol_, rest_));
   VD_RETURN_IF_ERROR(ctx.Reserve(&edge_w_, 6 * std::max<size_t>(m_, 1)));
   if (field) VD_RETURN_IF_ERROR(ocl::GatherState(ctx, m_, active.list, field->def_pos, field->def_rot, x_, rot_));
-  if (field && params_.adaptive_rigidity > 0.f && m_ > 0) {
+  adaptive_ = field && params_.adaptive_rigidity > 0.f;
+  if (adaptive_ && m_ > 0) {
     const float s = params_.adaptive_rigidity * vol.voxel_size;
     VD_RETURN_IF_ERROR(
         ocl::ArapEdgeWeights(ctx, m_, active.neighbours, x_, rot_, rest_, s * s, params_.rigidity_floor, edge_w_));

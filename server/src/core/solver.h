@@ -123,6 +123,8 @@ class DeviceSolver {
   // ARAP weight of each point's six edges, fixed per solve: 1, or from the field's strain
   // (adaptive rigidity, fine level only).
   ocl::Buffer<float> edge_w_;
+  // edge_w_ holds strain weights (not all 1) in this solve.
+  bool adaptive_ = false;
   // SetupConstraints with, on the fine level, the field the state is gathered from.
   Status SetupLevel(const VdVolume& vol, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
                     size_t num_pixels, const DeviceVolume* field);
