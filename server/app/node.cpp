@@ -446,13 +446,14 @@ class Node::Impl {
   }
 
   // --track-mesh: the frame's tracked mesh is published as KIND_TRACKED (before the status that
-  // names the frame) and, with --save-dir, written numbered by the frame's sequence number (the
-  // node has no source index).
+  // names the frame), kept for REQUEST_MESH and, with --save-dir, written numbered by the frame's
+  // sequence number (the node has no source index).
   void OutputTracked(const TriangleMesh& tracked, int64_t seq) {
     auto msg = MeshToMessage(tracked, NowUs(), seq, vdeform::mesh_t::KIND_TRACKED);
     if (msg.ok()) {
       std::lock_guard<std::mutex> lock(mutex_);
-      PublishOutput(channels_.mesh, &*msg, &SignMesh);
+      last_tracked_ = std::move(msg).value();
+      PublishOutput(channels_.mesh, &*last_tracked_, &SignMesh);
     } else if (tracked_encode_failures_++ == 0) {
       VD_LOG_ERROR << "cannot encode the tracked mesh: " << msg.status().ToString();
     }
@@ -487,6 +488,9 @@ class Node::Impl {
   void PublishMeshes(bool force_canonical) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (last_live_) PublishOutput(channels_.mesh, &*last_live_, &SignMesh);
+    // A viewer that joined late (REQUEST_MESH) also gets the newest tracked mesh; per frame it
+    // goes out once, from OutputTracked.
+    if (force_canonical && last_tracked_) PublishOutput(channels_.mesh, &*last_tracked_, &SignMesh);
     const auto now = Clock::now();
     const bool canonical_due =
         force_canonical || (canonical_changed_ && now - last_canonical_sent_ > std::chrono::seconds(1));
@@ -594,6 +598,8 @@ class Node::Impl {
   int64_t sign_failures_ = 0;
   // Tracked meshes that could not be written to --save-dir (logged once).
   int64_t tracked_write_failures_ = 0;
+  // The newest tracked mesh as published (--track-mesh), re-sent on REQUEST_MESH.
+  std::optional<vdeform::mesh_t> last_tracked_;
   int64_t tracked_encode_failures_ = 0;
   // Decides when the worker writes a checkpoint.
   CheckpointScheduler scheduler_;

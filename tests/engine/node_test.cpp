@@ -505,6 +505,27 @@ TEST_F(TrackedNodeTest, EveryFramePublishesTheTrackedMeshWithOneTopology) {
     ASSERT_TRUE(read.ok()) << name;
     EXPECT_EQ(read->num_vertices(), tracked[0].num_vertices());
   }
+
+  // A viewer that joins late asks for the meshes: the newest tracked one comes again with them.
+  inbox_.meshes.clear();
+  vdeform::control_t c{};
+  c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
+  c.auth_size = 0;
+  lcm_.publish(kControlChannel, &c);
+  Pump();
+  node_->Tick();
+  Pump();
+  std::vector<int> kinds;
+  for (const auto& msg : inbox_.meshes) {
+    kinds.push_back(msg.kind);
+    if (msg.kind != vdeform::mesh_t::KIND_TRACKED) continue;
+    EXPECT_EQ(msg.seq, kFrames - 1);
+    auto mesh = MessageToMesh(msg);
+    ASSERT_TRUE(mesh.ok());
+    EXPECT_EQ(mesh->triangles, tracked[0].triangles);
+  }
+  EXPECT_EQ(std::count(kinds.begin(), kinds.end(), int(vdeform::mesh_t::KIND_TRACKED)), 1);
+  EXPECT_EQ(std::count(kinds.begin(), kinds.end(), int(vdeform::mesh_t::KIND_LIVE)), 1);
 }
 
 TEST_F(NodeTest, SignalsStopServingWithoutAnError) {
