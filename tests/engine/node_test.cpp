@@ -71,6 +71,16 @@ class NodeTest : public ::testing::Test {
     while (lcm_.handleTimeout(0) > 0) {
     }
   }
+  // An unsigned REQUEST_MESH, as a viewer that joined late sends it, served by one Tick.
+  void RequestMeshes() {
+    vdeform::control_t c{};
+    c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
+    c.auth_size = 0;
+    lcm_.publish(kControlChannel, &c);
+    Pump();
+    node_->Tick();
+    Pump();
+  }
   vdeform::rgbd_frame_t Message(int64_t seq) {
     RgbdFrame f = frame_;
     f.seq = seq;
@@ -346,13 +356,7 @@ TEST_F(SignedOutputNodeTest, EveryMeshAndStatusIsSignedAndNumbered) {
   Pump();
   ASSERT_TRUE(node_->RunOnce());
   Pump();
-  vdeform::control_t c{};
-  c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
-  c.auth_size = 0;
-  lcm_.publish(kControlChannel, &c);
-  Pump();
-  node_->Tick();
-  Pump();
+  RequestMeshes();
   Status();
   ASSERT_GE(inbox_.meshes.size(), 4u) << "live and canonical, then both again on request";
   ASSERT_GE(inbox_.status.size(), 2u);
@@ -508,13 +512,7 @@ TEST_F(TrackedNodeTest, EveryFramePublishesTheTrackedMeshWithOneTopology) {
 
   // A viewer that joins late asks for the meshes: the newest tracked one comes again with them.
   inbox_.meshes.clear();
-  vdeform::control_t c{};
-  c.command = vdeform::control_t::COMMAND_REQUEST_MESH;
-  c.auth_size = 0;
-  lcm_.publish(kControlChannel, &c);
-  Pump();
-  node_->Tick();
-  Pump();
+  RequestMeshes();
   std::vector<int> kinds;
   for (const auto& msg : inbox_.meshes) {
     kinds.push_back(msg.kind);

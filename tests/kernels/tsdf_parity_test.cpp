@@ -59,6 +59,30 @@ TEST(TsdfParityTest, IntegrationMatchesCpuAndFindsTheSphere) {
   EXPECT_EQ(weight[at(0.f, 0.f, 0.95f)], 0.f);
 }
 
+// One vd_tsdf_integrate_active on the device from the given grid state; the state after it.
+struct FusedState {
+  std::vector<float> tsdf, weight;
+  std::vector<uint32_t> color;
+};
+FusedState FuseActiveOnDevice(ocl::Context* ctx, DeviceOps& ops, const SphereView& view, const FusedState& before,
+                              const std::vector<vd_float4>& pos, const std::vector<int>& list, const VdFusionParams& fp,
+                              const VdPose& T) {
+  const size_t n = view.n;
+  DeviceVolume dv;
+  EXPECT_TRUE(ops.AllocVolume(view.vol, true, &dv).ok());
+  EXPECT_TRUE(ctx->Upload(dv.tsdf, before.tsdf.data(), n).ok());
+  EXPECT_TRUE(ctx->Upload(dv.weight, before.weight.data(), n).ok());
+  EXPECT_TRUE(ctx->Upload(dv.color, before.color.data(), n).ok());
+  EXPECT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
+  DeviceActiveSet active;
+  active.list = test::ToDevice(ctx, list);
+  active.count = list.size();
+  EXPECT_TRUE(ops.IntegrateActive(dv, active, fp, view.cam, T, test::ToDevice(ctx, view.depth),
+                                  test::ToDevice(ctx, view.colors))
+                  .ok());
+  return {test::FromDevice(ctx, dv.tsdf, n), test::FromDevice(ctx, dv.weight, n), test::FromDevice(ctx, dv.color, n)};
+}
+
 // Non-rigid fusion of the active points at their deformed positions, on the device and the CPU:
 // a point optimised fewer than k_min times is not fused; one never fused before (weight 0) waits
 // for k_min_new; the deformation moves where a point samples the depth.
@@ -108,20 +132,10 @@ TEST(TsdfParityTest, ActiveIntegrationMatchesCpuAndGatesNewSpaceLonger) {
   EXPECT_NEAR(tsdf_ref[at(13)], 0.5f * (1.f + tsdf_ref[at(10)]), 1e-5f);
   EXPECT_GT(tsdf_ref[at(10)], 0.3f);  // 2 cm in front of the surface
 
-  DeviceVolume dv;
-  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
-  ASSERT_TRUE(ctx->Upload(dv.tsdf, tsdf.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.weight, weight.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.color, color.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
-  DeviceActiveSet active;
-  active.list = test::ToDevice(ctx, list);
-  active.count = list.size();
-  ASSERT_TRUE(
-      ops.IntegrateActive(dv, active, fp, cam, T, test::ToDevice(ctx, depth), test::ToDevice(ctx, colors)).ok());
-  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.tsdf, n), tsdf_ref, 1e-6f, 1e-5f));
-  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.weight, n), weight_ref, 0.f, 0.f));
-  EXPECT_EQ(test::FromDevice(ctx, dv.color, n), color_ref);
+  const FusedState dev = FuseActiveOnDevice(ctx, ops, view, {tsdf, weight, color}, pos, list, fp, T);
+  EXPECT_TRUE(test::AllClose(dev.tsdf, tsdf_ref, 1e-6f, 1e-5f));
+  EXPECT_TRUE(test::AllClose(dev.weight, weight_ref, 0.f, 0.f));
+  EXPECT_EQ(dev.color, color_ref);
 }
 
 // Carving: a stale surface 8 cm in front of the sphere's pole (fused at full weight with a
@@ -205,18 +219,9 @@ TEST(TsdfParityTest, CarvingUnlearnsStaleSurfaceOnlyWhereTheDepthSeesFreeSpace) 
   EXPECT_EQ(w0[rim], 0.5f * vol.max_weight + 1.f);
   EXPECT_EQ(w1[at(32, 3)], 0.5f * vol.max_weight + 1.f);
 
-  DeviceVolume dv;
-  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
-  ASSERT_TRUE(ctx->Upload(dv.tsdf, tsdf.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.weight, weight.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.color, color.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
-  DeviceActiveSet active;
-  active.list = test::ToDevice(ctx, list);
-  active.count = list.size();
-  ASSERT_TRUE(ops.IntegrateActive(dv, active, fp, cam, T, test::ToDevice(ctx, depth), test::ToDevice(ctx, colors)).ok());
-  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.tsdf, n), t1, 1e-6f, 1e-5f));
-  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, dv.weight, n), w1, 0.f, 0.f));
+  const FusedState dev = FuseActiveOnDevice(ctx, ops, view, {tsdf, weight, color}, pos, list, fp, T);
+  EXPECT_TRUE(test::AllClose(dev.tsdf, t1, 1e-6f, 1e-5f));
+  EXPECT_TRUE(test::AllClose(dev.weight, w1, 0.f, 0.f));
 }
 
 // Brick integration: the device's marking and integration against the CPU reference, then
