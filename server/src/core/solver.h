@@ -77,8 +77,6 @@ class DeviceSolver {
   // the first rotation step) or with the warm-start rotations rot0 (refined).
   Status SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
                           const ocl::Buffer<VdCorrespondence>& constraints, size_t n);
-  // The ARAP edge weights of the current solve (6 per active point; 1 = uniform).
-  const ocl::Buffer<float>& edge_weights() const { return edge_w_; }
   Status InitState(const ocl::Buffer<vd_float4>& x0);
   Status InitState(const ocl::Buffer<vd_float4>& x0, const ocl::Buffer<vd_float4>& rot0);
   // Position step: PCG from the current positions; returns the iterations used.
