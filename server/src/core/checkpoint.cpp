@@ -18,7 +18,9 @@ namespace vd {
 namespace {
 
 constexpr char kMagic[8] = {'V', 'D', 'C', 'K', 'P', 'T', '0', '1'};
-constexpr uint32_t kFormatVersion = 1;
+// 2: the tracked mesh after the keyframes. Version 1 files (no tracked mesh) are still read.
+constexpr uint32_t kFormatVersion = 2;
+constexpr size_t kMaxTrackedVertices = size_t(1) << 24;
 constexpr size_t kHeaderBytes = 8 + 8 + 32;
 constexpr int kBrick = 8;
 // Reset values of a grid point (DeviceOps::ResetVolume, vd_deformation_reset_row).
@@ -166,6 +168,13 @@ Status EngineState::Validate() const {
     if (k <= last || k >= int(history.size())) return InvalidArgument("checkpoint keyframe list is invalid");
     last = k;
   }
+  const size_t nv = tracked.num_vertices();
+  if (tracked.positions.size() != 3 * nv || (!tracked.colors.empty() && tracked.colors.size() != 3 * nv) ||
+      tracked.triangles.size() % 3 != 0 || (nv == 0) != tracked.triangles.empty())
+    return InvalidArgument("checkpoint tracked mesh has inconsistent arrays");
+  for (int32_t i : tracked.triangles)
+    if (i < 0 || size_t(i) >= nv) return InvalidArgument("checkpoint tracked mesh names a vertex it does not have");
+  if (!AllFinite(tracked.positions)) return InvalidArgument("checkpoint tracked mesh holds non-finite positions");
   return Status::Ok();
 }
 
@@ -216,6 +225,9 @@ std::string EncodeCheckpoint(const EngineState& s) {
     w.PutVector(f.canonical);
   }
   w.PutVector(s.keyframes);
+  w.PutVector(s.tracked.positions);
+  w.PutVector(s.tracked.colors);
+  w.PutVector(s.tracked.triangles);
   const std::string& payload = w.bytes();
   std::string out(kMagic, sizeof(kMagic));
   const uint64_t size = payload.size();
@@ -241,8 +253,8 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
   EngineState s;
   uint32_t version = 0, struct_size = 0;
   VD_RETURN_IF_ERROR(r.Get(&version, "version"));
-  if (version != kFormatVersion)
-    return DataLoss("checkpoint format version " + std::to_string(version) + " is not " +
+  if (version != kFormatVersion && version != 1)
+    return DataLoss("checkpoint format version " + std::to_string(version) + " is not 1 or " +
                     std::to_string(kFormatVersion));
   VD_RETURN_IF_ERROR(r.Get(&struct_size, "volume size"));
   if (struct_size != sizeof(VdVolume)) return DataLoss("checkpoint volume record has the wrong size");
@@ -307,6 +319,11 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
     VD_RETURN_IF_ERROR(r.GetVector(&f.canonical, kMaxKeypoints, "keypoint canonical"));
   }
   VD_RETURN_IF_ERROR(r.GetVector(&s.keyframes, kMaxHistoryFrames, "keyframes"));
+  if (version >= 2) {
+    VD_RETURN_IF_ERROR(r.GetVector(&s.tracked.positions, 3 * kMaxTrackedVertices, "tracked positions"));
+    VD_RETURN_IF_ERROR(r.GetVector(&s.tracked.colors, 3 * kMaxTrackedVertices, "tracked colours"));
+    VD_RETURN_IF_ERROR(r.GetVector(&s.tracked.triangles, 6 * kMaxTrackedVertices, "tracked faces"));
+  }
   if (r.remaining() != 0) return DataLoss("checkpoint has " + std::to_string(r.remaining()) + " trailing bytes");
   if (!AllFinite(s.tsdf) || !AllFinite(s.weight) || !AllFinite(s.def_pos) || !AllFinite(s.def_rot))
     return DataLoss("checkpoint volume holds non-finite values");

@@ -16,6 +16,7 @@
 
 #include "core/features.h"
 #include "shared/vd_types.h"
+#include "vd/common/mesh.h"
 #include "vd/common/status.h"
 
 namespace vd {
@@ -33,6 +34,10 @@ struct EngineState {
   int64_t frames_seen = 0;
   std::vector<FrameFeatures> history;
   std::vector<int> keyframes;
+  // The fixed-topology tracked mesh (--track-mesh) in canonical world metres, once fixed (the
+  // first frame's canonical mesh or the given one): positions, colours (empty or 3 per vertex) and
+  // faces, so a resumed run goes on deforming the same vertices. Empty when not tracking.
+  TriangleMesh tracked;
   // Sequence number and source of the last frame fused (for the log and the status).
   int64_t last_seq = -1;
   std::string source_id;

@@ -231,6 +231,7 @@ Status Engine::SaveState(EngineState* state) {
   s.frames_seen = frames_seen_;
   s.history = history_.frames();
   s.keyframes = history_.keyframes();
+  s.tracked = track_mesh_ ? tracked_canonical_ : TriangleMesh();
   return Status::Ok();
 }
 
@@ -264,6 +265,14 @@ Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
   frames_seen_ = s.frames_seen;
   history_.Restore(s.history, s.keyframes);
   initialised_ = true;
+  // The tracked mesh goes on with the vertices it had (a run that tracks a given mesh keeps that).
+  if (track_mesh_ && !s.tracked.triangles.empty() && track_given_.positions.empty()) {
+    Status t = FixTracked(s.tracked);
+    if (!t.ok()) {
+      Reset();
+      return t;
+    }
+  }
   // The surface the next frame is tracked against.
   FrameResult scratch;
   FrameResult* out = meshes ? meshes : &scratch;
@@ -285,6 +294,7 @@ void Engine::Reset() {
   pose_ = model_pose_ = Eigen::Matrix4d::Identity();
   mesh_.num_vertices = mesh_.num_triangles = 0;
   tracked_.num_vertices = tracked_.num_triangles = 0;
+  tracked_canonical_ = TriangleMesh();
 }
 
 Status Engine::TrackMesh(const TriangleMesh& canonical) {
@@ -305,40 +315,42 @@ Status Engine::TrackMesh(const TriangleMesh& canonical) {
   return Status::Ok();
 }
 
+Status Engine::FixTracked(const TriangleMesh& source) {
+  const size_t nv = source.num_vertices();
+  const VdVolume& vol = volume_.vol;
+  std::vector<vd_float4> grid(nv);
+  size_t outside = 0;
+  for (size_t i = 0; i < nv; ++i) {
+    const float* p = &source.positions[3 * i];
+    grid[i] = VD_F4((p[0] - vol.origin.x) / vol.voxel_size, (p[1] - vol.origin.y) / vol.voxel_size,
+                    (p[2] - vol.origin.z) / vol.voxel_size, 1.f);
+    outside += grid[i].x < 0 || grid[i].y < 0 || grid[i].z < 0 || grid[i].x > vol.dim_x - 1 ||
+               grid[i].y > vol.dim_y - 1 || grid[i].z > vol.dim_z - 1;
+  }
+  if (outside > 0)
+    VD_LOG_WARNING << "tracked mesh: " << outside << " of " << nv
+                   << " vertices lie outside the volume; they follow its nearest cells' field";
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&tracked_.positions_grid, nv));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&tracked_.positions, nv));
+  VD_RETURN_IF_ERROR(ctx_->Upload(tracked_.positions_grid, grid.data(), nv));
+  tracked_.num_vertices = nv;
+  tracked_.num_triangles = source.triangles.size() / 3;
+  tracked_canonical_.positions = source.positions;
+  tracked_canonical_.colors = source.colors;
+  tracked_canonical_.triangles = source.triangles;
+  return Status::Ok();
+}
+
 Status Engine::ExtractTracked(FrameResult* result) {
   if (!track_mesh_) return Status::Ok();
   if (tracked_.num_vertices == 0) {
-    // Fixed now: the given mesh, or this (first) frame's canonical mesh, in grid units.
+    // Fixed now: the given mesh, or this (first) frame's canonical mesh.
     const TriangleMesh& source = track_given_.positions.empty() ? result->canonical_mesh : track_given_;
-    const size_t nv = source.num_vertices();
-    if (nv == 0 || source.triangles.empty()) return Status::Ok();  // nothing fused yet
-    const VdVolume& vol = volume_.vol;
-    std::vector<vd_float4> grid(nv);
-    size_t outside = 0;
-    for (size_t i = 0; i < nv; ++i) {
-      const float* p = &source.positions[3 * i];
-      grid[i] = VD_F4((p[0] - vol.origin.x) / vol.voxel_size, (p[1] - vol.origin.y) / vol.voxel_size,
-                      (p[2] - vol.origin.z) / vol.voxel_size, 1.f);
-      outside += grid[i].x < 0 || grid[i].y < 0 || grid[i].z < 0 || grid[i].x > vol.dim_x - 1 ||
-                 grid[i].y > vol.dim_y - 1 || grid[i].z > vol.dim_z - 1;
-    }
-    if (outside > 0)
-      VD_LOG_WARNING << "tracked mesh: " << outside << " of " << nv
-                     << " vertices lie outside the volume; they follow its nearest cells' field";
-    VD_RETURN_IF_ERROR(ctx_->Reserve(&tracked_.positions_grid, nv));
-    VD_RETURN_IF_ERROR(ctx_->Reserve(&tracked_.positions, nv));
-    VD_RETURN_IF_ERROR(ctx_->Upload(tracked_.positions_grid, grid.data(), nv));
-    tracked_.num_vertices = nv;
-    tracked_.num_triangles = source.triangles.size() / 3;
-    TriangleMesh& t = result->tracked_mesh;
-    t.triangles = source.triangles;
-    t.colors = source.colors;
-    track_given_.triangles = source.triangles;
-    track_given_.colors = source.colors;
-  } else {
-    result->tracked_mesh.triangles = track_given_.triangles;
-    result->tracked_mesh.colors = track_given_.colors;
+    if (source.num_vertices() == 0 || source.triangles.empty()) return Status::Ok();  // nothing fused yet
+    VD_RETURN_IF_ERROR(FixTracked(source));
   }
+  result->tracked_mesh.triangles = tracked_canonical_.triangles;
+  result->tracked_mesh.colors = tracked_canonical_.colors;
   const size_t nv = tracked_.num_vertices;
   if (volume_.has_deformation()) {
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &tracked_));

@@ -251,6 +251,11 @@ class Engine {
   // and on the device in grid units once the volume is placed (positions_grid fixed).
   bool track_mesh_ = false;
   TriangleMesh track_given_;
+  // The mesh being tracked once fixed (canonical world metres; positions, colours, faces): what
+  // checkpoints keep so a resumed run deforms the same vertices.
+  TriangleMesh tracked_canonical_;
+  // Uploads `source` (canonical world metres) as the tracked mesh's vertices, in grid units.
+  Status FixTracked(const TriangleMesh& source);
   DeviceMesh tracked_;
   std::vector<vd_float4> tracked_host_;
   // Non-rigid state: the active set, the deformed mesh rendered at the current pose, the
