@@ -23,6 +23,7 @@
 #include "vd/common/log.h"
 #include "vd/common/lcm_guard.h"
 #include "vd/common/messages.h"
+#include "vd/common/thread_name.h"
 
 namespace vd {
 namespace {
@@ -109,9 +110,18 @@ class Node::Impl {
   Status Serve(const std::atomic<bool>* stop) {
     // The worker also stops when receiving fails, which *stop (the caller's) does not say.
     std::atomic<bool> done{false};
+    // This thread receives (and decodes); the OpenCL runtime's threads, started before, keep the
+    // program's name.
+    NameThisThread("vd-receive");
     async_output_ = true;
-    std::thread output([&] { OutputLoop(); });
-    std::thread worker([&] { Work(&done); });
+    std::thread output([&] {
+      NameThisThread("vd-output");
+      OutputLoop();
+    });
+    std::thread worker([&] {
+      NameThisThread("vd-worker");
+      Work(&done);
+    });
     Status status = Status::Ok();
     while (!*stop) {
       errno = 0;

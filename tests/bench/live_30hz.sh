@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Live: a 30 Hz capture without lockstep feeds a running server (defaults, 4 mm). Prints what the
-# capture sent, the server's processed fraction and rate, and its capture-to-mesh latency p50/p95.
+# capture sent, the server's processed fraction and rate, its capture-to-mesh latency p50/p95, and
+# the CPU each server thread used while the capture ran, in % of one core (vd-worker: the frame
+# loop; vd-sift: feature detection; vd-receive: LCM and decoding; vd-output: mesh encoding;
+# vdeform-server: the OpenCL runtime's workers).
 #   tests/bench/live_30hz.sh BUILD_DIR [SCENE] [FRAMES]
 set -euo pipefail
 build=$(cd "$1" && pwd)
@@ -16,7 +19,26 @@ date -u
 "$build/server/vdeform-server" --lcm-url "$url" --quiet >"$work/server.log" 2>&1 &
 srv=$!
 sleep 4
+# utime + stime (clock ticks) of every server thread, by thread name.
+# Detection runs on short-lived threads (std::async): their time is the process's total less the
+# threads alive at the end, reported as vd-sift.
+threads() {
+  for t in /proc/"$srv"/task/*; do echo "$(tr ' ' _ <"$t"/comm) $(awk '{print $14 + $15}' "$t"/stat)"; done 2>/dev/null
+  echo "process $(awk '{print $14 + $15}' /proc/"$srv"/stat)"
+}
+threads >"$work/cpu0"
+t0=$(date +%s.%N)
 "$build/capture_client/vdeform-capture" --source "folder:$work/scene" --fps 30 --lcm-url "$url" --quiet
+t1=$(date +%s.%N)
+threads >"$work/cpu1"
+awk -v t0="$t0" -v t1="$t1" -v hz="$(getconf CLK_TCK)" '
+  NR == FNR { a[$1] += $2; next } { b[$1] += $2 }
+  END {
+    live = 0
+    for (k in b) if (k != "process" && k != "vd-sift") live += b[k] - a[k]
+    b["vd-sift"] += (b["process"] - a["process"]) - live
+    for (k in b) if (k != "process") printf "cpu_%s=%.0f%%\n", k, 100 * (b[k] - a[k]) / hz / (t1 - t0)
+  }' "$work/cpu0" "$work/cpu1" | sort
 sleep 3
 "$build/server/vdeform-control" --command status --lcm-url "$url" --wait 3 | grep -E "^(frames_received|frames_processed|frames_dropped|fps|latency_ms_p50|latency_ms_p95)="
 kill -INT "$srv"

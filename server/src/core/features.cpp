@@ -11,6 +11,7 @@
 
 #include "ocl/features_ocl.h"
 #include "vd/common/flags.h"
+#include "vd/common/thread_name.h"
 
 namespace vd {
 namespace {
@@ -249,6 +250,7 @@ void AsyncFeatureExtractor::Prefetch(const RgbdFrame& frame) {
   const FeatureParams p = params_;
   const float lo = min_depth_, hi = max_depth_;
   pending_[frame.seq] = std::async(std::launch::async, [copy = std::move(copy), p, lo, hi]() {
+                          NameThisThread("vd-sift");
                           return ExtractFeatures(copy, p, lo, hi);
                         }).share();
 }
