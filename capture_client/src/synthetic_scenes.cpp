@@ -1,5 +1,6 @@
-// The three synthetic scenes: a bending tube, a waving and sliding cloth, and a rigid object seen
-// by a moving camera. World = frame 0's camera coordinates (x right, y down, z forward).
+// The synthetic scenes: a bending tube (and its long-take variant), a waving and sliding cloth, a
+// rigid object seen by a moving camera, and an object that enters from outside the first view.
+// World = frame 0's camera coordinates (x right, y down, z forward).
 #include <cmath>
 
 #include "synthetic_internal.h"
@@ -12,6 +13,33 @@ constexpr double kDeg = M_PI / 180.0;
 // Target edge length of the ground-truth meshes: the chord error of a 2 mm edge on the tightest
 // curvature used (the 40 mm cylinder) is 0.0125 mm, far below the 1 mm depth quantisation.
 constexpr double kEdge = 0.002;
+
+// A rectangle corner + u e1 + v e2 with e1 x e2 the outward normal.
+Chart PlaneChart(const Eigen::Vector3d& corner, const Eigen::Vector3d& e1, const Eigen::Vector3d& e2,
+                 const Texture& texture) {
+  Chart chart;
+  chart.nu = SamplesFor(e1.norm(), kEdge);
+  chart.nv = SamplesFor(e2.norm(), kEdge);
+  chart.texture = texture;
+  chart.rest = [corner, e1, e2](double u, double v) { return Eigen::Vector3d(corner + u * e1 + v * e2); };
+  return chart;
+}
+
+// A sphere; u = longitude, v = polar angle from the pole at -z: d/du x d/dv points outwards.
+Chart SphereChart(const Eigen::Vector3d& centre, double radius, const Texture& texture) {
+  Chart chart;
+  chart.nu = static_cast<int>(std::ceil(2.0 * M_PI * radius / kEdge));
+  chart.nv = SamplesFor(M_PI * radius, kEdge);
+  chart.wrap_u = true;
+  chart.pole_v0 = chart.pole_v1 = true;
+  chart.texture = texture;
+  chart.rest = [centre, radius](double u, double v) {
+    const double theta = 2.0 * M_PI * u, phi = M_PI * v;
+    return Eigen::Vector3d(centre + radius * Eigen::Vector3d(std::sin(phi) * std::cos(theta),
+                                                             std::sin(phi) * std::sin(theta), -std::cos(phi)));
+  };
+  return chart;
+}
 
 // A capsule (cylinder with hemispherical ends) lying across the view that bends into an arc.
 // "tube": the end tangents turn by kMaxBend * sin^2(pi tau), up and back. "bend" (a long-take
@@ -191,14 +219,8 @@ class RigidScene : public ParametricScene {
   }
 
  private:
-  // A rectangle corner + u e1 + v e2 with e1 x e2 the outward normal.
   void AddPlane(const Eigen::Vector3d& corner, const Eigen::Vector3d& e1, const Eigen::Vector3d& e2, const Texture& texture) {
-    Chart chart;
-    chart.nu = SamplesFor(e1.norm(), kEdge);
-    chart.nv = SamplesFor(e2.norm(), kEdge);
-    chart.texture = texture;
-    chart.rest = [corner, e1, e2](double u, double v) { return Eigen::Vector3d(corner + u * e1 + v * e2); };
-    AddChart(chart);
+    AddChart(PlaneChart(corner, e1, e2, texture));
   }
 
   // Five faces (no bottom) of a box standing on the floor, turned by `yaw` about z.
@@ -217,19 +239,7 @@ class RigidScene : public ParametricScene {
   }
 
   void AddSphere(const Eigen::Vector3d& centre, double radius, const Texture& texture) {
-    Chart chart;
-    chart.nu = static_cast<int>(std::ceil(2.0 * M_PI * radius / kEdge));
-    chart.nv = SamplesFor(M_PI * radius, kEdge);
-    chart.wrap_u = true;
-    chart.pole_v0 = chart.pole_v1 = true;
-    chart.texture = texture;
-    // u = longitude, v = polar angle from the bottom pole: d/du x d/dv points outwards.
-    chart.rest = [centre, radius](double u, double v) {
-      const double theta = 2.0 * M_PI * u, phi = M_PI * v;
-      return Eigen::Vector3d(centre + radius * Eigen::Vector3d(std::sin(phi) * std::cos(theta),
-                                                               std::sin(phi) * std::sin(theta), -std::cos(phi)));
-    };
-    AddChart(chart);
+    AddChart(SphereChart(centre, radius, texture));
   }
 
   // An upright cylinder standing on the floor with a flat top; its bottom is hidden.
@@ -264,10 +274,37 @@ class RigidScene : public ParametricScene {
   std::vector<Eigen::Vector3d> world_;
 };
 
+// "enter" (a scene that grows beyond its first view, issue 17): a 95 x 30 cm textured strip 1 m in
+// front of a still camera, of which the first frame sees only the right part, in the left half of
+// the image (the strip runs from x = -0.95 to 0.0 m; the image spans +-0.61 m at this depth). Over
+// the first 60 % of the take it slides 45 cm to the right along itself and rests, all of it in
+// view: its left end, never seen by the first frame, enters from the image's left edge. In the
+// canonical (first-frame) space that end lies up to 24 cm past the space around the first frame's
+// points, which a volume fixed at the first frame cannot hold. Only the features see the slide
+// (the depth of a plane moving within itself does not change), as in the cloth scene.
+class EnterScene : public ParametricScene {
+ public:
+  static constexpr double kSlide = 0.45;
+
+  explicit EnterScene(const SyntheticOptions& options) : ParametricScene("enter", options, false) {
+    // Facing the camera: e1 right, e2 up (-y), e1 x e2 = -z.
+    AddChart(PlaneChart(Eigen::Vector3d(-0.95, 0.15, 1.0), Eigen::Vector3d(0.95, 0.0, 0.0),
+                        Eigen::Vector3d(0.0, -0.30, 0.0), Texture{505, false}));
+    FinishCharts();
+  }
+
+ protected:
+  void WorldPositions(double tau, std::vector<Eigen::Vector3d>* world) const override {
+    const Eigen::Vector3d shift(kSlide * SmoothStep(std::min(1.0, tau / 0.6)), 0.0, 0.0);
+    world->resize(rest().size());
+    for (size_t i = 0; i < rest().size(); ++i) (*world)[i] = rest()[i] + shift;
+  }
+};
+
 }  // namespace
 }  // namespace synthetic_internal
 
-std::vector<std::string> SyntheticSceneNames() { return {"tube", "cloth", "rigid", "bend"}; }
+std::vector<std::string> SyntheticSceneNames() { return {"tube", "cloth", "rigid", "bend", "enter"}; }
 
 StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& name, const SyntheticOptions& options) {
   VD_RETURN_IF_ERROR(options.Validate());
@@ -276,6 +313,7 @@ StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& 
   if (name == "bend") return std::unique_ptr<SyntheticScene>(new TubeScene(options, true));
   if (name == "cloth") return std::unique_ptr<SyntheticScene>(new ClothScene(options));
   if (name == "rigid") return std::unique_ptr<SyntheticScene>(new RigidScene(options));
+  if (name == "enter") return std::unique_ptr<SyntheticScene>(new EnterScene(options));
   std::string valid;
   for (const std::string& n : SyntheticSceneNames()) valid += (valid.empty() ? "" : ", ") + n;
   return NotFound("unknown synthetic scene '" + name + "' (valid: " + valid + ")");

@@ -73,7 +73,7 @@ void FitPlane(const TriangleMesh& mesh, Eigen::Vector3d* centre, Eigen::Vector3d
 }
 
 TEST(SyntheticTest, OptionsAndNames) {
-  EXPECT_EQ(SyntheticSceneNames(), (std::vector<std::string>{"tube", "cloth", "rigid", "bend"}));
+  EXPECT_EQ(SyntheticSceneNames(), (std::vector<std::string>{"tube", "cloth", "rigid", "bend", "enter"}));
   SyntheticOptions options;
   EXPECT_TRUE(options.Validate().ok());
   options.width = 0;
