@@ -1,6 +1,6 @@
 #pragma once
 // Checkpoints: everything needed to continue a model in a new process (the canonical volume, the
-// deformation field, the camera pose and intrinsics, the feature history), written atomically
+// deformation field, the camera pose and intrinsics, the feature history, the tracked mesh), written atomically
 // (temporary file, fsync, rename; the previous checkpoint kept beside it) with a SHA-256 of the
 // contents, so a torn or corrupt file is detected and reported, never loaded. Untouched 8^3
 // bricks (the reset values throughout) are not stored: a checkpoint is the size of the surface.
