@@ -173,19 +173,30 @@ TEST(CheckpointTest, TrackedMeshRoundTripsAndVersionOneFilesStillLoad) {
   EXPECT_NE(DecodeCheckpoint(v3).status().message().find("version 3"), std::string::npos);
 }
 
+// The tube (40-frame take) and two engines at 6 mm: one runs on, the other resumes from its
+// checkpoint.
+struct ResumePair {
+  StatusOr<std::unique_ptr<SyntheticScene>> scene = NotFound("not made");
+  StatusOr<std::unique_ptr<Engine>> a = NotFound("not made"), b = NotFound("not made");
+};
+ResumePair MakeResumePair() {
+  ResumePair r;
+  SyntheticOptions so;
+  so.num_frames = 40;
+  r.scene = MakeSyntheticScene("tube", so);
+  EngineParams p;
+  p.voxel_size = 0.006f;
+  r.a = Engine::Create(p, "");
+  r.b = Engine::Create(p, "");
+  return r;
+}
+
 // --track-mesh across a resume: the resumed engine deforms the same vertices and faces as the
 // one that wrote the checkpoint, to within the original's own frame-to-frame agreement.
 TEST(CheckpointTest, ResumedEngineTracksTheSameMesh) {
   if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
-  SyntheticOptions so;
-  so.num_frames = 40;
-  auto scene = MakeSyntheticScene("tube", so);
-  ASSERT_TRUE(scene.ok());
-  EngineParams p;
-  p.voxel_size = 0.006f;
-  auto a = Engine::Create(p, "");
-  auto b = Engine::Create(p, "");
-  ASSERT_TRUE(a.ok() && b.ok());
+  auto [scene, a, b] = MakeResumePair();
+  ASSERT_TRUE(scene.ok() && a.ok() && b.ok());
   ASSERT_TRUE((*a)->TrackMesh(TriangleMesh()).ok());
   ASSERT_TRUE((*b)->TrackMesh(TriangleMesh()).ok());
   const int split = 6;
@@ -287,15 +298,8 @@ TEST(CheckpointTest, FilesAreReplacedAtomicallyAndACorruptOneFallsBack) {
 
 TEST(CheckpointTest, ResumedEngineContinuesLikeTheOriginal) {
   if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
-  SyntheticOptions so;
-  so.num_frames = 40;
-  auto scene = MakeSyntheticScene("tube", so);
-  ASSERT_TRUE(scene.ok());
-  EngineParams p;
-  p.voxel_size = 0.006f;
-  auto a = Engine::Create(p, "");
-  auto b = Engine::Create(p, "");
-  ASSERT_TRUE(a.ok() && b.ok());
+  auto [scene, a, b] = MakeResumePair();
+  ASSERT_TRUE(scene.ok() && a.ok() && b.ok());
   const int split = 12, total = 20;
   for (int k = 0; k < split; ++k) {
     auto r = (*a)->Process(scene.value()->Render(k));
