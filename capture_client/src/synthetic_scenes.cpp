@@ -25,21 +25,6 @@ Chart PlaneChart(const Eigen::Vector3d& corner, const Eigen::Vector3d& e1, const
   return chart;
 }
 
-// A sphere; u = longitude, v = polar angle from the pole at -z: d/du x d/dv points outwards.
-Chart SphereChart(const Eigen::Vector3d& centre, double radius, const Texture& texture) {
-  Chart chart;
-  chart.nu = static_cast<int>(std::ceil(2.0 * M_PI * radius / kEdge));
-  chart.nv = SamplesFor(M_PI * radius, kEdge);
-  chart.wrap_u = true;
-  chart.pole_v0 = chart.pole_v1 = true;
-  chart.texture = texture;
-  chart.rest = [centre, radius](double u, double v) {
-    const double theta = 2.0 * M_PI * u, phi = M_PI * v;
-    return Eigen::Vector3d(centre + radius * Eigen::Vector3d(std::sin(phi) * std::cos(theta),
-                                                             std::sin(phi) * std::sin(theta), -std::cos(phi)));
-  };
-  return chart;
-}
 
 // A capsule (cylinder with hemispherical ends) lying across the view that bends into an arc.
 // "tube": the end tangents turn by kMaxBend * sin^2(pi tau), up and back. "bend" (a long-take
@@ -239,7 +224,19 @@ class RigidScene : public ParametricScene {
   }
 
   void AddSphere(const Eigen::Vector3d& centre, double radius, const Texture& texture) {
-    AddChart(SphereChart(centre, radius, texture));
+    Chart chart;
+    chart.nu = static_cast<int>(std::ceil(2.0 * M_PI * radius / kEdge));
+    chart.nv = SamplesFor(M_PI * radius, kEdge);
+    chart.wrap_u = true;
+    chart.pole_v0 = chart.pole_v1 = true;
+    chart.texture = texture;
+    // u = longitude, v = polar angle from the bottom pole: d/du x d/dv points outwards.
+    chart.rest = [centre, radius](double u, double v) {
+      const double theta = 2.0 * M_PI * u, phi = M_PI * v;
+      return Eigen::Vector3d(centre + radius * Eigen::Vector3d(std::sin(phi) * std::cos(theta),
+                                                               std::sin(phi) * std::sin(theta), -std::cos(phi)));
+    };
+    AddChart(chart);
   }
 
   // An upright cylinder standing on the floor with a flat top; its bottom is hidden.

@@ -13,9 +13,8 @@ __kernel void vd_procrustes(__global const int* neighbours, __global const float
  * VD_LANES consecutive points per work item (a kLaned launch). Each lane's covariance is gathered
  * on its own (its neighbours are anywhere in the set); the steps run on all lanes at once. */
 __kernel void vd_procrustes_refine_kernel(__global const int* neighbours, __global const float* edge_w,
-                                          __global const float4* t,
-                                          __global const float4* t_hat, __global float4* rot, int iterations,
-                                          int vd_items) {
+                                          __global const float4* t, __global const float4* t_hat, __global float4* rot,
+                                          int iterations, int vd_items) {
   int base = (int)get_global_id(0) * VD_LANES;
   if (base >= vd_items) return;
   float sm[9][VD_LANES], qx[VD_LANES], qy[VD_LANES], qz[VD_LANES], qw[VD_LANES];

@@ -58,10 +58,9 @@ __kernel void vd_constraint_residuals(__global const VdCorrespondence* cons, __g
 /* Once per solve: the constraint-only part of b and the preconditioner. */
 __kernel void vd_system_data_diag_kernel(__global const int* list, __global const int* compact, VdVolume vol,
                                          __global const int* neighbours, __global const float* edge_w,
-                                         __global const VdCorrespondence* cons,
-                                         __global const uint* cell_start, __global const float* targets,
-                                         VdSolverWeights w, __global float4* data_rhs, __global VdMat3* diag_inv,
-                                         int vd_items) {
+                                         __global const VdCorrespondence* cons, __global const uint* cell_start,
+                                         __global const float* targets, VdSolverWeights w, __global float4* data_rhs,
+                                         __global VdMat3* diag_inv, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   VdMat3 inv;
@@ -71,8 +70,9 @@ __kernel void vd_system_data_diag_kernel(__global const int* list, __global cons
 
 /* Every position step: b from the current rotations. */
 __kernel void vd_system_rhs_kernel(__global const int* list, VdVolume vol, __global const int* neighbours,
-                                   __global const float* edge_w, __global const float4* rot, __global const float4* data_rhs,
-                                   __global const float4* x_prev, VdSolverWeights w, __global float4* b, int vd_items) {
+                                   __global const float* edge_w, __global const float4* rot,
+                                   __global const float4* data_rhs, __global const float4* x_prev, VdSolverWeights w,
+                                   __global float4* b, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   b[k] = vd_system_rhs(k, list, vol, neighbours, edge_w, rot, data_rhs, x_prev, w);
@@ -80,9 +80,9 @@ __kernel void vd_system_rhs_kernel(__global const int* list, VdVolume vol, __glo
 
 __kernel void vd_system_apply_kernel(__global const int* list, __global const int* compact, VdVolume vol,
                                      __global const int* neighbours, __global const float* edge_w,
-                                     __global const VdCorrespondence* cons,
-                                     __global const uint* cell_start, __global const float* r,
-                                     __global const float4* d, VdSolverWeights w, __global float4* q, int vd_items) {
+                                     __global const VdCorrespondence* cons, __global const uint* cell_start,
+                                     __global const float* r, __global const float4* d, VdSolverWeights w,
+                                     __global float4* q, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   q[k] = vd_system_apply(k, list, compact, vol, neighbours, edge_w, cons, cell_start, r, d, w);
@@ -98,10 +98,9 @@ __kernel void vd_cell_moments_kernel(__global const int* list, VdVolume vol, __g
 
 __kernel void vd_btb_assemble_kernel(__global const int* list, __global const int* compact, VdVolume vol,
                                      __global const int* neighbours, __global const float* edge_w,
-                                     __global const uint* cell_start,
-                                     __global const float* moments, VdSolverWeights w, __global float* blocks,
-                                     __global int* nbr, __global float4* data_rhs, __global VdMat3* diag_inv,
-                                     int vd_items) {
+                                     __global const uint* cell_start, __global const float* moments, VdSolverWeights w,
+                                     __global float* blocks, __global int* nbr, __global float4* data_rhs,
+                                     __global VdMat3* diag_inv, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   VdMat3 inv;
@@ -110,9 +109,9 @@ __kernel void vd_btb_assemble_kernel(__global const int* list, __global const in
 }
 
 __kernel void vd_system_apply_cached_kernel(__global const int* neighbours, __global const float* edge_w,
-                                            __global const float* blocks,
-                                            __global const int* nbr, __global const float4* d, VdSolverWeights w,
-                                            __global float4* q, int vd_items) {
+                                            __global const float* blocks, __global const int* nbr,
+                                            __global const float4* d, VdSolverWeights w, __global float4* q,
+                                            int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   q[k] = vd_system_apply_cached(k, neighbours, edge_w, blocks, nbr, d, w);
@@ -204,13 +203,14 @@ __kernel void vd_energy_dense_partial(__global const VdCorrespondence* cons, int
 }
 
 __kernel void vd_energy_arap_partial(__global const int* list, __global const int* neighbours,
-                                     __global const float* edge_w, VdVolume vol,
-                                     __global const float4* x, __global const float4* rot, int n, int chunk,
-                                     __global float* partials, int vd_items) {
+                                     __global const float* edge_w, VdVolume vol, __global const float4* x,
+                                     __global const float4* rot, int n, int chunk, __global float* partials,
+                                     int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int g = get_global_id(0);
   float s = 0.0f;
-  for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k) s += vd_arap_energy(k, list, neighbours, edge_w, vol, x, rot);
+  for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k)
+    s += vd_arap_energy(k, list, neighbours, edge_w, vol, x, rot);
   partials[g] = s;
 }
 

@@ -13,8 +13,8 @@ __kernel void vd_tsdf_integrate(__global float* tsdf, __global float* weight, __
 /* Non-rigid fusion: one work item per active grid point. */
 __kernel void vd_tsdf_integrate_active(__global float* tsdf, __global float* weight, __global uint* color,
                                        __global const int* list, __global const float4* def_pos, VdFusionParams fp,
-                                       VdVolume vol, VdCamera cam, VdPose world_to_cam,
-                                       __global const float* depth, __global const uint* rgba, int vd_items) {
+                                       VdVolume vol, VdCamera cam, VdPose world_to_cam, __global const float* depth,
+                                       __global const uint* rgba, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int gi = list[get_global_id(0)];
   vd_tsdf_integrate_deformed(tsdf, weight, color, gi, def_pos[gi], fp, vol, cam, world_to_cam, depth, rgba);

@@ -1,6 +1,8 @@
 // Checkpoints: exact round trip, torn and corrupt files refused (never a partial state), atomic
 // replacement with the previous checkpoint kept, an engine resumed from a checkpoint continuing
 // like the one that wrote it, and the node's --checkpoint / --resume path.
+#include "core/checkpoint.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -9,12 +11,11 @@
 #include <fstream>
 #include <random>
 
-#include "core/checkpoint.h"
+#include "../support/temp_dir.h"
 #include "node.h"
-#include "vd/common/auth.h"
 #include "scene_eval.h"
 #include "shared/deformation.h"
-#include "../support/temp_dir.h"
+#include "vd/common/auth.h"
 
 namespace vd {
 namespace {

@@ -46,8 +46,9 @@ TEST(FieldRigidTest, TheFitRecoversARigidMotionAndMeasuresTheRest) {
       want_sq += (t - Eigen::Vector3d(g.x, g.y, g.z)).squaredNorm();
       ++optimised_count;
     }
-    deformed.push_back(optimised ? VD_F4(float(t.x() + noise(rng)), float(t.y() + noise(rng)), float(t.z() + noise(rng)), 2.f)
-                                 : VD_F4(g.x, g.y, g.z, 0.f));
+    deformed.push_back(optimised
+                           ? VD_F4(float(t.x() + noise(rng)), float(t.y() + noise(rng)), float(t.z() + noise(rng)), 2.f)
+                           : VD_F4(g.x, g.y, g.z, 0.f));
   }
   double motion = 0, residual = 0;
   const Eigen::Matrix4d fit = Engine::FieldRigidMotion(deformed, list, vol, &motion, &residual);

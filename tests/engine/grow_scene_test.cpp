@@ -50,9 +50,10 @@ TEST(GrowSceneTest, TheMeshCoversASurfaceThatEntersFromOutsideTheFirstView) {
   }
   ASSERT_GT(entered, 1000u);
   const double coverage = double(covered) / double(seen), entered_coverage = double(entered_covered) / double(entered);
-  std::printf("enter, %d frames: %.1f %% of the strip in view within 5 mm of the last live mesh; of the part "
-              "that entered %.1f %%\n",
-              n, 100.0 * coverage, 100.0 * entered_coverage);
+  std::printf(
+      "enter, %d frames: %.1f %% of the strip in view within 5 mm of the last live mesh; of the part "
+      "that entered %.1f %%\n",
+      n, 100.0 * coverage, 100.0 * entered_coverage);
   EXPECT_GE(coverage, 0.95);
   EXPECT_GE(entered_coverage, 0.95);
 }

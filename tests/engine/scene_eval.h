@@ -6,6 +6,8 @@
 //   non-rigid displacement = mean distance between each live vertex and its canonical vertex moved
 //   by the estimated camera pose only.
 // Free of gtest: the engine suites and the scene benchmark (tests/bench/scene_bench.cpp) share it.
+#include <time.h>
+
 #include <algorithm>
 #include <array>
 #include <chrono>
@@ -13,7 +15,6 @@
 #include <cstdio>
 #include <string>
 #include <vector>
-#include <time.h>
 
 #include "core/engine.h"
 #include "ocl/ocl.h"

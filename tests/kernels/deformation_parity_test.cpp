@@ -9,8 +9,8 @@
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/device_ops.h"
 #include "shared/deformation.h"
-#include "test_scenes.h"
 #include "sphere_volume.h"
+#include "test_scenes.h"
 
 namespace vd {
 namespace {
@@ -145,7 +145,8 @@ TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesC
   active.list = test::ToDevice(ctx, list);
   active.count = list.size();
   ASSERT_TRUE(ops.Extrapolate(dv, active).ok());
-  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
+  EXPECT_TRUE(
+      test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
   EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 0.f, 0.f));
 }
 
@@ -162,7 +163,8 @@ TEST(DeformationParityTest, FieldRigidMovesOptimisedPointsAndMatchesCpu) {
   for (size_t i = 0; i < n; i += 3) {
     pos[i] = pos[i] + VD_F4(0.01f * u(rng), 0.01f * u(rng), 0.01f * u(rng), 0.f);
     pos[i].w = float(1 + i % 5);
-    const Eigen::Quaternionf r = Eigen::Quaternionf(Eigen::AngleAxisf(0.3f * u(rng), Eigen::Vector3f(u(rng), u(rng), 1.f).normalized()));
+    const Eigen::Quaternionf r =
+        Eigen::Quaternionf(Eigen::AngleAxisf(0.3f * u(rng), Eigen::Vector3f(u(rng), u(rng), 1.f).normalized()));
     rot[i] = VD_F4(r.x(), r.y(), r.z(), r.w());
   }
   const Eigen::AngleAxisf turn(0.1f, Eigen::Vector3f(1.f, -0.5f, 0.2f).normalized());
@@ -196,8 +198,10 @@ TEST(DeformationParityTest, FieldRigidMovesOptimisedPointsAndMatchesCpu) {
   ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
   ASSERT_TRUE(ctx->Upload(dv.def_rot, rot.data(), n).ok());
   ASSERT_TRUE(ops.TransformField(dv, a, q).ok());
-  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
-  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 1e-6f, 1e-6f));
+  EXPECT_TRUE(
+      test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
+  EXPECT_TRUE(
+      test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 1e-6f, 1e-6f));
 }
 
 }  // namespace

@@ -70,9 +70,8 @@ TEST(KernelSignatureTest, AHandleThatDisagreesWithItsKernelFailsAtLaunch) {
     GTEST_SKIP() << "the device reports no argument kinds, so only counts are compared: " << count.ToString();
   }
   // Right count, but it claims to only read the rotations the kernel writes.
-  constexpr ocl::Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                             const Buffer<vd_float4>& t, const Buffer<vd_float4>& t_hat,
-                             const Buffer<vd_float4>& rot, int32_t iterations)>
+  constexpr ocl::Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<vd_float4>& t,
+                             const Buffer<vd_float4>& t_hat, const Buffer<vd_float4>& rot, int32_t iterations)>
       kReadOnly{"vd_procrustes_refine_kernel", ocl::kLaned};
   const Status kind = kReadOnly(*ctx, 1, neighbours, w, t, t, rot, 0);
   ASSERT_FALSE(kind.ok());

@@ -257,7 +257,8 @@ TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
   const auto nbr = FromDevice(ctx, *d_nbr, size_t(VD_BTB_BLOCKS) * m);
 
   std::vector<vd_float4> q_cpu(m);
-  cpu::ApplySystemCached(p.active.neighbours.data(), ew.data(), blocks.data(), nbr.data(), d.data(), w, m, q_cpu.data());
+  cpu::ApplySystemCached(p.active.neighbours.data(), ew.data(), blocks.data(), nbr.data(), d.data(), w, m,
+                         q_cpu.data());
   EXPECT_TRUE(AllClose(Flatten(q), Flatten(q_cpu), 1e-6f, 1e-5f));
 
   const IndependentBtb ref = AssembleIndependently(p, w);

@@ -117,8 +117,8 @@ TEST(TsdfParityTest, ActiveIntegrationMatchesCpuAndGatesNewSpaceLonger) {
   const VdPose T = test::IdentityPose();
   std::vector<float> tsdf_ref = tsdf, weight_ref = weight;
   std::vector<uint32_t> color_ref = color;
-  cpu::IntegrateActive(tsdf_ref.data(), weight_ref.data(), color_ref.data(), list.data(), int(list.size()), pos.data(), fp,
-                       vol, cam, T, depth.data(), colors.data());
+  cpu::IntegrateActive(tsdf_ref.data(), weight_ref.data(), color_ref.data(), list.data(), int(list.size()), pos.data(),
+                       fp, vol, cam, T, depth.data(), colors.data());
   int fused = 0;
   for (int iz = 2; iz <= 14; ++iz) {
     const int i = at(iz);

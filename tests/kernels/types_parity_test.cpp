@@ -17,10 +17,10 @@ constexpr ocl::Kernel<void(ocl::Buffer<int32_t>& out)> kTypeSizes{"vd_type_sizes
 TEST(TypesParityTest, SharedStructSizesMatchOnHostAndDevice) {
   VD_REQUIRE_OCL(ctx);
   // In the order of kernels/types.cl.
-  const std::vector<int> host = {int(sizeof(VdCamera)),       int(sizeof(VdPose)),          int(sizeof(VdVolume)),
-                                 int(sizeof(VdIcpParams)),    int(sizeof(vd_float4)),       int(sizeof(VdCorrespondence)),
-                                 int(sizeof(VdCorrParams)),   int(sizeof(VdLiftParams)),    int(sizeof(VdSolverWeights)),
-                                 int(sizeof(VdMatchBest)),    int(sizeof(VdMat3)),          int(sizeof(VdFusionParams))};
+  const std::vector<int> host = {int(sizeof(VdCamera)),     int(sizeof(VdPose)),       int(sizeof(VdVolume)),
+                                 int(sizeof(VdIcpParams)),  int(sizeof(vd_float4)),    int(sizeof(VdCorrespondence)),
+                                 int(sizeof(VdCorrParams)), int(sizeof(VdLiftParams)), int(sizeof(VdSolverWeights)),
+                                 int(sizeof(VdMatchBest)),  int(sizeof(VdMat3)),       int(sizeof(VdFusionParams))};
   auto out = ctx->Alloc<int32_t>(host.size());
   ASSERT_TRUE(out.ok());
   ASSERT_TRUE(kTypeSizes(*ctx, 1, *out).ok());

@@ -200,7 +200,8 @@ Neighbourhood MakeNeighbourhood(const Eigen::Vector3d& centre, double h, const E
 }
 
 Eigen::Matrix3d PointRotation(const Neighbourhood& nb) {
-  const vd_float4 q = vd_procrustes_point(0, nb.neighbours.data(), nullptr, nb.t.data(), nb.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
+  const vd_float4 q =
+      vd_procrustes_point(0, nb.neighbours.data(), nullptr, nb.t.data(), nb.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
   EXPECT_NEAR(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w, 1.f, 1e-6f);
   EXPECT_GE(q.w, 0.f);
   return ToEigen(vd_quat_to_mat3(q));
@@ -544,7 +545,8 @@ TEST(ProcrustesTest, CpuReferenceMatchesPointFunctionAndReportsThroughput) {
   std::vector<vd_float4> rot(n);
   cpu::Procrustes(s.neighbours.data(), nullptr, s.t.data(), s.t_hat.data(), n, 0, rot.data());
   for (int k = 0; k < n; k += 997) {
-    const vd_float4 q = vd_procrustes_point(k, s.neighbours.data(), nullptr, s.t.data(), s.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
+    const vd_float4 q =
+        vd_procrustes_point(k, s.neighbours.data(), nullptr, s.t.data(), s.t_hat.data(), VD_F4(0.f, 0.f, 0.f, 1.f), 0);
     EXPECT_EQ(rot[k].x, q.x);
     EXPECT_EQ(rot[k].y, q.y);
     EXPECT_EQ(rot[k].z, q.z);

@@ -190,7 +190,8 @@ TEST(StatusTextTest, OverlayAndSummary) {
   std::vector<std::string> paths;
   for (int i = 0; i < 30; ++i) paths.push_back("/out/frame-" + std::to_string(i) + ".mesh.ply");
   const std::string summary = SummaryText(stats, TrackingStatus(), paths, 20);
-  EXPECT_NE(summary.find("meshes received 10: decoded 9 (live 8, canonical 1, tracked 0, repeats 0), failed 1"), std::string::npos)
+  EXPECT_NE(summary.find("meshes received 10: decoded 9 (live 8, canonical 1, tracked 0, repeats 0), failed 1"),
+            std::string::npos)
       << summary;
   EXPECT_NE(summary.find("bytes 2048 (2.0 KB)"), std::string::npos);
   EXPECT_NE(summary.find("last live seq 41"), std::string::npos);

@@ -189,8 +189,8 @@ VD_INLINE vd_float4 vd_procrustes_refine(VdMat3 s, vd_float4 q, int iterations) 
  * optimum by SVD (vd_procrustes_rotation), else vd_procrustes_refine from warm[k], the point's
  * current rotation. */
 VD_INLINE vd_float4 vd_procrustes_point(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                        VD_GLOBAL const vd_float4* t, VD_GLOBAL const vd_float4* t_hat,
-                                        vd_float4 warm, int iterations) {
+                                        VD_GLOBAL const vd_float4* t, VD_GLOBAL const vd_float4* t_hat, vd_float4 warm,
+                                        int iterations) {
   VdMat3 s = vd_procrustes_covariance(k, neighbours, edge_w, t, t_hat);
   if (iterations <= 0) return vd_mat3_to_quat(vd_procrustes_rotation(s));
   return vd_procrustes_refine(s, warm, iterations);

@@ -139,9 +139,8 @@ VD_INLINE float vd_weighted_degree(int k, VD_GLOBAL const int* neighbours, VD_GL
 /* A d at point k, given the constraint residuals r_c = vd_constraint_apply(c, d). */
 VD_INLINE vd_float4 vd_system_apply(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
                                     VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                    VD_GLOBAL const VdCorrespondence* cons,
-                                    VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* r,
-                                    VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
+                                    VD_GLOBAL const VdCorrespondence* cons, VD_GLOBAL const vd_uint* cell_start,
+                                    VD_GLOBAL const float* r, VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
   vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, w.weighted_edges, d) * (2.0f * w.w_reg) +
                 vd_gather_constraints(k, list, compact, vol, cons, cell_start, r, 0) * w.w_dense + d[k] * w.damping;
   q.w = 0.0f;
@@ -239,9 +238,8 @@ VD_INLINE VdMat3 vd_mat3_inverse_spd(VdMat3 d) {
  * moments of the (up to 8) cells it is a corner of. */
 VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
                                     VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                    VD_GLOBAL const vd_uint* cell_start,
-                                    VD_GLOBAL const float* moments, VdSolverWeights w, VD_GLOBAL float* blocks,
-                                    VD_GLOBAL int* nbr, VdMat3* diag_inv) {
+                                    VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* moments,
+                                    VdSolverWeights w, VD_GLOBAL float* blocks, VD_GLOBAL int* nbr, VdMat3* diag_inv) {
   int x, y, z;
   vd_grid_coords(list[k], vol, &x, &y, &z);
   for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
@@ -313,8 +311,8 @@ VD_INLINE vd_float4 vd_btb_apply(int k, VD_GLOBAL const float* blocks, VD_GLOBAL
 VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
                                            VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
                                            VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
-  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, w.weighted_edges, d) * (2.0f * w.w_reg) + vd_btb_apply(k, blocks, nbr, d) +
-                d[k] * w.damping;
+  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, w.weighted_edges, d) * (2.0f * w.w_reg) +
+                vd_btb_apply(k, blocks, nbr, d) + d[k] * w.damping;
   q.w = 0.0f;
   return q;
 }
@@ -344,9 +342,8 @@ VD_INLINE vd_float4 vd_system_reg_rhs(int k, VD_GLOBAL const int* list, VdVolume
  * 2 w_r deg_k I + w_d sum_c w_c alpha_ck^2 n_c n_c^T + lambda I, the Jacobi preconditioner. */
 VD_INLINE vd_float4 vd_system_data_diag(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
                                         VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                        VD_GLOBAL const VdCorrespondence* cons,
-                                        VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* targets,
-                                        VdSolverWeights w, VdMat3* diag_inv) {
+                                        VD_GLOBAL const VdCorrespondence* cons, VD_GLOBAL const vd_uint* cell_start,
+                                        VD_GLOBAL const float* targets, VdSolverWeights w, VdMat3* diag_inv) {
   VdMat3 diag = vd_mat3_zero();
   vd_float4 data = vd_gather_constraints(k, list, compact, vol, cons, cell_start, targets, &diag);
   float s = 2.0f * w.w_reg * vd_weighted_degree(k, neighbours, edge_w) + w.damping;
@@ -366,7 +363,8 @@ VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VdVolume vol
                                   VD_GLOBAL const float* edge_w, VD_GLOBAL const vd_float4* rot,
                                   VD_GLOBAL const vd_float4* data_rhs, VD_GLOBAL const vd_float4* x_prev,
                                   VdSolverWeights w) {
-  vd_float4 b = vd_system_reg_rhs(k, list, vol, neighbours, edge_w, rot) * w.w_reg + data_rhs[k] + x_prev[k] * w.damping;
+  vd_float4 b =
+      vd_system_reg_rhs(k, list, vol, neighbours, edge_w, rot) * w.w_reg + data_rhs[k] + x_prev[k] * w.damping;
   b.w = 0.0f;
   return b;
 }

@@ -4,15 +4,14 @@
 // (temporary file, fsync, rename; the previous checkpoint kept beside it) with a SHA-256 of the
 // contents, so a torn or corrupt file is detected and reported, never loaded. Untouched 8^3
 // bricks (the reset values throughout) are not stored: a checkpoint is the size of the surface.
+#include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
-#include <ostream>
 #include <optional>
+#include <ostream>
 #include <string>
 #include <vector>
-
-#include <Eigen/Core>
 
 #include "core/features.h"
 #include "shared/vd_types.h"

@@ -5,10 +5,9 @@
 #include <cmath>
 #include <cstring>
 #include <fstream>
-#include <sstream>
-
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
 
 #include "ocl/solver_ocl.h"
 #include "vd/common/flags.h"
@@ -631,7 +630,8 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
   if (m < 4) return Status::Ok();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&factor_pos_, m));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&factor_rot_, m));
-  VD_RETURN_IF_ERROR(ocl::GatherState(*ctx_, m, active_.list, volume_.def_pos, volume_.def_rot, factor_pos_, factor_rot_));
+  VD_RETURN_IF_ERROR(
+      ocl::GatherState(*ctx_, m, active_.list, volume_.def_pos, volume_.def_rot, factor_pos_, factor_rot_));
   factor_host_.resize(m);
   factor_list_.resize(m);
   VD_RETURN_IF_ERROR(ctx_->Download(factor_pos_, factor_host_.data(), m));
@@ -785,9 +785,8 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       fp.k_min_new = std::max(params_.k_min, params_.k_min_new);
       fp.carve_rate = params_.carve_rate;
       fp.carve_radius = params_.carve_radius;
-      VD_RETURN_IF_ERROR(ops_.IntegrateActive(volume_, active_, fp, cam_,
-                                              ToVdPose(pose_.inverse()),
-                                              depth_raw_m_, rgba_));
+      VD_RETURN_IF_ERROR(
+          ops_.IntegrateActive(volume_, active_, fp, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
     } else {
       VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
     }

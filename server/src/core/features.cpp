@@ -3,11 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <sstream>
-#include <tuple>
-
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <sstream>
+#include <tuple>
 
 #include "ocl/features_ocl.h"
 #include "vd/common/flags.h"

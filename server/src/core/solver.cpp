@@ -142,12 +142,12 @@ Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& acti
     VD_RETURN_IF_ERROR(ctx.Reserve(&moments_, VD_CELL_MOMENT_FLOATS * std::max<size_t>(m_, 1)));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * std::max<size_t>(m_, 1)));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * std::max<size_t>(m_, 1)));
-    return ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_, cell_start_, Weights(),
-                         moments_, btb_, btb_nbr_, data_rhs_, diag_inv_);
+    return ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_, cell_start_,
+                         Weights(), moments_, btb_, btb_nbr_, data_rhs_, diag_inv_);
   }
   VD_RETURN_IF_ERROR(ocl::ConstraintTargets(ctx, total, cons_, targets_));
-  return ocl::DataRhsAndDiagonal(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_, cell_start_,
-                                 targets_, Weights(), data_rhs_, diag_inv_);
+  return ocl::DataRhsAndDiagonal(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_,
+                                 cell_start_, targets_, Weights(), data_rhs_, diag_inv_);
 }
 
 StatusOr<double> DeviceSolver::SumPartials(size_t groups) {
@@ -164,7 +164,8 @@ Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float
   const VdSolverWeights w = Weights();
   if (cache_btb_) return ocl::ApplySystemCached(ctx, m_, a.neighbours, edge_w_, btb_, btb_nbr_, d, w, q);
   VD_RETURN_IF_ERROR(ocl::ConstraintResiduals(ctx, num_constraints_, cons_, a.compact, vol_, d, residuals_));
-  return ocl::ApplySystem(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, cons_, cell_start_, residuals_, d, w, q);
+  return ocl::ApplySystem(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, cons_, cell_start_, residuals_, d, w,
+                          q);
 }
 
 StatusOr<int> DeviceSolver::PositionStep() {
@@ -222,8 +223,8 @@ StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {
     VD_ASSIGN_OR_RETURN(ed, SumPartials(gc));
   }
   if (gp) {
-    VD_RETURN_IF_ERROR(ocl::ArapEnergyPartials(ctx, gp, active_->list, active_->neighbours, edge_w_, vol_, x_, rot_, int(m_),
-                                                kChunk, partials_));
+    VD_RETURN_IF_ERROR(ocl::ArapEnergyPartials(ctx, gp, active_->list, active_->neighbours, edge_w_, vol_, x_, rot_,
+                                               int(m_), kChunk, partials_));
     VD_ASSIGN_OR_RETURN(er, SumPartials(gp));
   }
   if (dense) *dense = ed;

@@ -51,12 +51,11 @@ void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, Vd
 }
 
 void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* list, int n, const vd_float4* def_pos,
-                     VdFusionParams fp, VdVolume vol, VdCamera cam, VdPose world_to_cam,
-                     const float* depth, const uint32_t* rgba) {
+                     VdFusionParams fp, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
+                     const uint32_t* rgba) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < n; ++k)
-    vd_tsdf_integrate_deformed(tsdf, weight, color, list[k], def_pos[list[k]], fp, vol, cam,
-                               world_to_cam, depth, rgba);
+    vd_tsdf_integrate_deformed(tsdf, weight, color, list[k], def_pos[list[k]], fp, vol, cam, world_to_cam, depth, rgba);
 }
 
 void TransformField(vd_float4* def_pos, vd_float4* def_rot, int n, VdPose a, vd_float4 q_a) {

@@ -31,8 +31,8 @@ void IntegrateTsdfBricks(float* tsdf, float* weight, uint32_t* color, VdVolume v
 // Non-rigid fusion (vd_tsdf_integrate_active) of the n listed grid points at their deformed
 // positions, behind the k_min / k_min_new gates of shared/tsdf.h, with its carving.
 void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* list, int n, const vd_float4* def_pos,
-                     VdFusionParams fp, VdVolume vol, VdCamera cam, VdPose world_to_cam,
-                     const float* depth, const uint32_t* rgba);
+                     VdFusionParams fp, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
+                     const uint32_t* rgba);
 
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
 // vd_field_rigid over n grid points.

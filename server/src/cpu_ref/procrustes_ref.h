@@ -9,7 +9,7 @@ namespace vd::cpu {
 // when iterations = 0, else refined from the rot[k] given. neighbours holds 6 * n entries, each
 // −1 (absent) or a compact index in [0, n); t and t_hat hold n deformed and rest positions (w
 // ignored); edge_w: 6 ARAP edge weights per point, or null for 1 each.
-void Procrustes(const int* neighbours, const float* edge_w, const vd_float4* t, const vd_float4* t_hat, int n, int iterations,
-                vd_float4* rot);
+void Procrustes(const int* neighbours, const float* edge_w, const vd_float4* t, const vd_float4* t_hat, int n,
+                int iterations, vd_float4* rot);
 
 }  // namespace vd::cpu

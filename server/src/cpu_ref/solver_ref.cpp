@@ -9,16 +9,16 @@ void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, co
 }
 
 void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const float* edge_w,
-                 const vd_uint* cell_start,
-                 const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr, vd_float4* data_rhs,
-                 VdMat3* diag_inv) {
+                 const vd_uint* cell_start, const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr,
+                 vd_float4* data_rhs, VdMat3* diag_inv) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k)
-    data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, cell_start, moments, w, blocks, nbr, &diag_inv[k]);
+    data_rhs[k] =
+        vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, cell_start, moments, w, blocks, nbr, &diag_inv[k]);
 }
 
-void ApplySystemCached(const int* neighbours, const float* edge_w, const float* blocks, const int* nbr, const vd_float4* d,
-                       VdSolverWeights w, int m, vd_float4* q) {
+void ApplySystemCached(const int* neighbours, const float* edge_w, const float* blocks, const int* nbr,
+                       const vd_float4* d, VdSolverWeights w, int m, vd_float4* q) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, neighbours, edge_w, blocks, nbr, d, w);
 }

@@ -16,12 +16,11 @@ void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, co
 // Per point: 27 blocks (VD_BTB_FLOATS floats) and neighbour indices, the data
 // right-hand side and the inverse diagonal block, from the moments.
 void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const float* edge_w,
-                 const vd_uint* cell_start,
-                 const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr, vd_float4* data_rhs,
-                 VdMat3* diag_inv);
+                 const vd_uint* cell_start, const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr,
+                 vd_float4* data_rhs, VdMat3* diag_inv);
 // q = A d (edge-weighted ARAP Laplacian, cached w_d B^T B, damping) for m points.
-void ApplySystemCached(const int* neighbours, const float* edge_w, const float* blocks, const int* nbr, const vd_float4* d,
-                       VdSolverWeights w, int m, vd_float4* q);
+void ApplySystemCached(const int* neighbours, const float* edge_w, const float* blocks, const int* nbr,
+                       const vd_float4* d, VdSolverWeights w, int m, vd_float4* q);
 
 // Adaptive rigidity (vd_arap_edge_weights_kernel): 6 ARAP edge weights per point for m points.
 void ArapEdgeWeights(const int* neighbours, const vd_float4* x, const vd_float4* rot, const vd_float4* t_hat, int m,

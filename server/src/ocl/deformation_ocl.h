@@ -16,8 +16,8 @@ inline constexpr Kernel<void(Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_
 inline constexpr Kernel<void(const Buffer<vd_float4>& grid_pos, const Buffer<vd_float4>& def_pos, VdVolume vol,
                              Buffer<vd_float4>& out)> kDeformVertices{"vd_deform_vertices"};
 // One item per grid point.
-inline constexpr Kernel<void(Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot, VdPose a,
-                             vd_float4 q_a)> kFieldRigid{"vd_field_rigid"};
+inline constexpr Kernel<void(Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot, VdPose a, vd_float4 q_a)>
+    kFieldRigid{"vd_field_rigid"};
 // One item per active point; writes the new state apart (ExtrapolateCommit copies it in).
 inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<vd_float4>& def_pos,
                              const Buffer<vd_float4>& def_rot, VdVolume vol, Buffer<vd_float4>& pos_out,

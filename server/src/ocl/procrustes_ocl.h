@@ -10,13 +10,12 @@
 namespace vd::ocl {
 
 // One item per active point: R_k as a unit quaternion, the exact optimum (SVD).
-inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                             const Buffer<vd_float4>& t, const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot)>
+inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<vd_float4>& t,
+                             const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot)>
     kProcrustes{"vd_procrustes"};
 // Laned, one lane per active point: R_k refined by `iterations` steps from the rotation rot holds.
-inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                             const Buffer<vd_float4>& t, const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot,
-                             int32_t iterations)>
+inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<vd_float4>& t,
+                             const Buffer<vd_float4>& t_hat, Buffer<vd_float4>& rot, int32_t iterations)>
     kProcrustesRefine{"vd_procrustes_refine_kernel", kLaned};
 
 // The rotation step of DeviceSolver (core/solver.cpp): R_k of each of the m active points fitted
@@ -24,7 +23,6 @@ inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<flo
 // edge_w (6 per point): exact (SVD) when iterations = 0, else refined from the rotations rot holds
 // (shared/procrustes.h).
 Status FitRotations(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                    const Buffer<vd_float4>& t,
-                    const Buffer<vd_float4>& t_hat, int iterations, Buffer<vd_float4>& rot);
+                    const Buffer<vd_float4>& t, const Buffer<vd_float4>& t_hat, int iterations, Buffer<vd_float4>& rot);
 
 }  // namespace vd::ocl

@@ -34,14 +34,15 @@ Status ConstraintTargets(Context& ctx, size_t n, const Buffer<VdCorrespondence>&
 Status DataRhsAndDiagonal(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact,
                           VdVolume vol, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
                           const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start,
-                          const Buffer<float>& targets, VdSolverWeights w,
-                          Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
-  return kSystemDataDiag(ctx, m, list, compact, vol, neighbours, edge_w, cons, cell_start, targets, w, data_rhs, diag_inv);
+                          const Buffer<float>& targets, VdSolverWeights w, Buffer<vd_float4>& data_rhs,
+                          Buffer<VdMat3>& diag_inv) {
+  return kSystemDataDiag(ctx, m, list, compact, vol, neighbours, edge_w, cons, cell_start, targets, w, data_rhs,
+                         diag_inv);
 }
 
 Status SystemRhs(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
-                 const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs, const Buffer<vd_float4>& x_prev,
-                 VdSolverWeights w, Buffer<vd_float4>& b) {
+                 const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs,
+                 const Buffer<vd_float4>& x_prev, VdSolverWeights w, Buffer<vd_float4>& b) {
   return kSystemRhs(ctx, m, list, vol, neighbours, edge_w, rot, data_rhs, x_prev, w, b);
 }
 
@@ -51,25 +52,24 @@ Status ConstraintResiduals(Context& ctx, size_t n, const Buffer<VdCorrespondence
 }
 
 Status ApplySystem(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                   const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                   const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
+                   const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
+                   const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
                    VdSolverWeights w, Buffer<vd_float4>& q) {
   return kSystemApply(ctx, m, list, compact, vol, neighbours, edge_w, cons, cell_start, r, d, w, q);
 }
 
 Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start, VdSolverWeights w,
-                Buffer<float>& moments, Buffer<float>& blocks,
+                const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
+                const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
                 Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
   VD_RETURN_IF_ERROR(kCellMoments(ctx, m, list, vol, cons, cell_start, moments));
-  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, cell_start, moments, w, blocks, nbr, data_rhs, diag_inv);
+  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, cell_start, moments, w, blocks, nbr, data_rhs,
+                      diag_inv);
 }
 
 Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                         const Buffer<float>& blocks,
-                         const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d, VdSolverWeights w,
-                         Buffer<vd_float4>& q) {
+                         const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
+                         VdSolverWeights w, Buffer<vd_float4>& q) {
   return kSystemApplyCached(ctx, m, neighbours, edge_w, blocks, nbr, d, w, q);
 }
 
@@ -99,8 +99,8 @@ Status DenseEnergyPartials(Context& ctx, size_t groups, const Buffer<VdCorrespon
 }
 
 Status ArapEnergyPartials(Context& ctx, size_t groups, const Buffer<int32_t>& list, const Buffer<int32_t>& neighbours,
-                          const Buffer<float>& edge_w, VdVolume vol, const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot, int n, int chunk,
-                          Buffer<float>& partials) {
+                          const Buffer<float>& edge_w, VdVolume vol, const Buffer<vd_float4>& x,
+                          const Buffer<vd_float4>& rot, int n, int chunk, Buffer<float>& partials) {
   return kEnergyArapPartial(ctx, groups, list, neighbours, edge_w, vol, x, rot, n, chunk, partials);
 }
 

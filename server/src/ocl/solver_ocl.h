@@ -31,31 +31,34 @@ inline constexpr Kernel<void(const Buffer<VdCorrespondence>& cons,
 inline constexpr Kernel<void(const Buffer<VdCorrespondence>& cons, const Buffer<int32_t>& compact, VdVolume vol,
                              const Buffer<vd_float4>& d,
                              Buffer<float>& r)> kConstraintResiduals{"vd_constraint_residuals"};
-inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                             const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
-                             const Buffer<uint32_t>& cell_start, const Buffer<float>& targets, VdSolverWeights w,
-                             Buffer<vd_float4>& data_rhs,
-                             Buffer<VdMat3>& diag_inv)> kSystemDataDiag{"vd_system_data_diag_kernel"};
+inline constexpr Kernel<void(
+    const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol, const Buffer<int32_t>& neighbours,
+    const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start,
+    const Buffer<float>& targets, VdSolverWeights w, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv)>
+    kSystemDataDiag{"vd_system_data_diag_kernel"};
 inline constexpr Kernel<void(const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
-                             const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs,
-                             const Buffer<vd_float4>& x_prev, VdSolverWeights w,
-                             Buffer<vd_float4>& b)> kSystemRhs{"vd_system_rhs_kernel"};
-inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                             const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
-                             const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
-                             VdSolverWeights w, Buffer<vd_float4>& q)> kSystemApply{"vd_system_apply_kernel"};
+                             const Buffer<float>& edge_w, const Buffer<vd_float4>& rot,
+                             const Buffer<vd_float4>& data_rhs, const Buffer<vd_float4>& x_prev, VdSolverWeights w,
+                             Buffer<vd_float4>& b)>
+    kSystemRhs{"vd_system_rhs_kernel"};
+inline constexpr Kernel<void(
+    const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol, const Buffer<int32_t>& neighbours,
+    const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start,
+    const Buffer<float>& r, const Buffer<vd_float4>& d, VdSolverWeights w, Buffer<vd_float4>& q)>
+    kSystemApply{"vd_system_apply_kernel"};
 // One item per active point, the first corner of its cell.
 inline constexpr Kernel<void(const Buffer<int32_t>& list, VdVolume vol, const Buffer<VdCorrespondence>& cons,
                              const Buffer<uint32_t>& cell_start,
                              Buffer<float>& moments)> kCellMoments{"vd_cell_moments_kernel"};
-inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                             const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<uint32_t>& cell_start,
-                             const Buffer<float>& moments, VdSolverWeights w, Buffer<float>& blocks,
-                             Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs,
-                             Buffer<VdMat3>& diag_inv)> kBtbAssemble{"vd_btb_assemble_kernel"};
-inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
-                             const Buffer<vd_float4>& d, VdSolverWeights w,
-                             Buffer<vd_float4>& q)> kSystemApplyCached{"vd_system_apply_cached_kernel"};
+inline constexpr Kernel<void(
+    const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol, const Buffer<int32_t>& neighbours,
+    const Buffer<float>& edge_w, const Buffer<uint32_t>& cell_start, const Buffer<float>& moments, VdSolverWeights w,
+    Buffer<float>& blocks, Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv)>
+    kBtbAssemble{"vd_btb_assemble_kernel"};
+inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
+                             const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
+                             VdSolverWeights w, Buffer<vd_float4>& q)>
+    kSystemApplyCached{"vd_system_apply_cached_kernel"};
 inline constexpr Kernel<void(const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& r,
                              Buffer<vd_float4>& z)> kPcgPrecondition{"vd_pcg_precondition"};
 // y = a x + y (xyz).
@@ -81,15 +84,17 @@ inline constexpr Kernel<void(const Buffer<VdCorrespondence>& cons, int n, int ch
                              VdVolume vol, const Buffer<vd_float4>& x,
                              Buffer<float>& partials)> kEnergyDensePartial{"vd_energy_dense_partial"};
 // One item per chunk of `chunk` points.
-inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, VdVolume vol,
-                             const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot, int n, int chunk,
-                             Buffer<float>& partials)> kEnergyArapPartial{"vd_energy_arap_partial"};
+inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& neighbours,
+                             const Buffer<float>& edge_w, VdVolume vol, const Buffer<vd_float4>& x,
+                             const Buffer<vd_float4>& rot, int n, int chunk, Buffer<float>& partials)>
+    kEnergyArapPartial{"vd_energy_arap_partial"};
 inline constexpr Kernel<void(const Buffer<int32_t>& list, VdVolume vol,
                              Buffer<vd_float4>& t_hat)> kSolverRest{"vd_solver_rest"};
 // One item per active point: its six ARAP edge weights.
-inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot,
-                             const Buffer<vd_float4>& t_hat, float scale2, float floor_w,
-                             Buffer<float>& edge_w)> kArapEdgeWeights{"vd_arap_edge_weights_kernel"};
+inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& x,
+                             const Buffer<vd_float4>& rot, const Buffer<vd_float4>& t_hat, float scale2, float floor_w,
+                             Buffer<float>& edge_w)>
+    kArapEdgeWeights{"vd_arap_edge_weights_kernel"};
 
 // Launchers of DeviceSolver (core/solver.cpp), one per step it takes on the device; `m` active
 // points (the items of the per-point kernels above), `n` constraints or elements where said.
@@ -113,13 +118,14 @@ Status SortConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& c
 Status ConstraintTargets(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, Buffer<float>& targets);
 // The constraint-only part of b and the Jacobi preconditioner, fixed per solve.
 Status DataRhsAndDiagonal(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact,
-                          VdVolume vol, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
-                          const Buffer<uint32_t>& cell_start, const Buffer<float>& targets, VdSolverWeights w,
-                          Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv);
+                          VdVolume vol, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
+                          const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start,
+                          const Buffer<float>& targets, VdSolverWeights w, Buffer<vd_float4>& data_rhs,
+                          Buffer<VdMat3>& diag_inv);
 // b of the position step from the current rotations and the previous positions.
 Status SystemRhs(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
-                 const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs, const Buffer<vd_float4>& x_prev,
-                 VdSolverWeights w, Buffer<vd_float4>& b);
+                 const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs,
+                 const Buffer<vd_float4>& x_prev, VdSolverWeights w, Buffer<vd_float4>& b);
 // B d for the n sorted constraints: the first half of A d when B^T B is not cached.
 Status ConstraintResiduals(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, const Buffer<int32_t>& compact,
                            VdVolume vol, const Buffer<vd_float4>& d, Buffer<float>& r);
@@ -136,9 +142,9 @@ Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffe
                 const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
                 Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv);
 // q = A d from the blocks of BuildBtb.
-Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<float>& blocks,
-                         const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d, VdSolverWeights w,
-                         Buffer<vd_float4>& q);
+Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
+                         const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
+                         VdSolverWeights w, Buffer<vd_float4>& q);
 // The PCG steps over n points; z = M^-1 r with the Jacobi blocks of DataRhsAndDiagonal.
 Status Precondition(Context& ctx, size_t n, const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& r,
                     Buffer<vd_float4>& z);
@@ -174,7 +180,7 @@ Status ArapEdgeWeights(Context& ctx, size_t m, const Buffer<int32_t>& neighbours
                        Buffer<float>& edge_w);
 // E_reg over n active points, partial sums as for DotPartials.
 Status ArapEnergyPartials(Context& ctx, size_t groups, const Buffer<int32_t>& list, const Buffer<int32_t>& neighbours,
-                          const Buffer<float>& edge_w, VdVolume vol, const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot, int n, int chunk,
-                          Buffer<float>& partials);
+                          const Buffer<float>& edge_w, VdVolume vol, const Buffer<vd_float4>& x,
+                          const Buffer<vd_float4>& rot, int n, int chunk, Buffer<float>& partials);
 
 }  // namespace vd::ocl

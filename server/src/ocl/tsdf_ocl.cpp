@@ -34,7 +34,8 @@ Status DeviceOps::IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active
                                   VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
                                   const ocl::Buffer<uint32_t>& rgba) {
   if (!v.has_deformation()) return FailedPrecondition("IntegrateActive needs a deformation field");
-  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, active.list, v.def_pos, fp, v.vol, cam, world_to_cam, depth, rgba);
+  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, active.list, v.def_pos, fp, v.vol,
+                                   cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd

@@ -16,9 +16,9 @@ inline constexpr Kernel<void(Buffer<float>& tsdf, Buffer<float>& weight, Buffer<
 // One item per active point.
 inline constexpr Kernel<void(Buffer<float>& tsdf, Buffer<float>& weight, Buffer<uint32_t>& color,
                              const Buffer<int32_t>& list, const Buffer<vd_float4>& def_pos, VdFusionParams fp,
-                             VdVolume vol,
-                             VdCamera cam, VdPose world_to_cam, const Buffer<float>& depth,
-                             const Buffer<uint32_t>& rgba)> kTsdfIntegrateActive{"vd_tsdf_integrate_active"};
+                             VdVolume vol, VdCamera cam, VdPose world_to_cam, const Buffer<float>& depth,
+                             const Buffer<uint32_t>& rgba)>
+    kTsdfIntegrateActive{"vd_tsdf_integrate_active"};
 // One item per 8x8 pixel tile.
 inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam,
                              Buffer<vd_float4>& tiles)> kDepthTiles{"vd_depth_tiles"};
