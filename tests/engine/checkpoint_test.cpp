@@ -77,6 +77,8 @@ EngineState SmallState(uint32_t seed) {
     s.history.push_back(ff);
   }
   s.keyframes = {0, 1};
+  // Frame 5's feature 3 matched frame 0's feature 2.
+  s.links = {FeatureLink{5, 0, 3, 2}};
   return s;
 }
 
@@ -108,6 +110,7 @@ void ExpectSame(const EngineState& a, const EngineState& b) {
     EXPECT_TRUE(SameBytes(a.history[f].u, b.history[f].u));
   }
   EXPECT_EQ(a.keyframes, b.keyframes);
+  EXPECT_TRUE(SameBytes(a.links, b.links));
   EXPECT_EQ(a.tracked.positions, b.tracked.positions);
   EXPECT_EQ(a.tracked.colors, b.tracked.colors);
   EXPECT_EQ(a.tracked.triangles, b.tracked.triangles);
@@ -133,9 +136,24 @@ TEST(CheckpointTest, RoundTripIsExactAndStoresOnlyTouchedBricks) {
   EXPECT_LT(bytes.size(), dense / 3) << "untouched bricks must not be stored";
 }
 
-// The tracked mesh (--track-mesh) round-trips exactly; a face naming a missing vertex is refused;
-// a version-1 file (written before the tracked mesh was stored) still loads, without one.
-TEST(CheckpointTest, TrackedMeshRoundTripsAndVersionOneFilesStillLoad) {
+// The same checkpoint as an older format version: `version` written over the current one, without
+// the last `dropped_vectors` (empty) arrays, re-digested.
+std::string AsOlderVersion(const std::string& current, uint32_t version, size_t dropped_vectors) {
+  const size_t header = 8 + 8 + 32;
+  std::string payload = current.substr(header, current.size() - header - dropped_vectors * sizeof(uint64_t));
+  std::memcpy(payload.data(), &version, sizeof(version));
+  std::string out = current.substr(0, 8);
+  const uint64_t size = payload.size();
+  out.append(reinterpret_cast<const char*>(&size), sizeof(size));
+  const Sha256Digest digest = Sha256(payload.data(), payload.size());
+  out.append(reinterpret_cast<const char*>(digest.data()), digest.size());
+  return out + payload;
+}
+
+// The tracked mesh (--track-mesh) and the feature links round-trip exactly; a face naming a missing
+// vertex or a link naming a missing feature is refused; version-1 files (before the tracked mesh)
+// and version-2 files (before the links) still load, without them.
+TEST(CheckpointTest, TrackedMeshAndLinksRoundTripAndOlderFilesStillLoad) {
   const EngineState s = StateWithTrackedMesh(4);
   auto back = DecodeCheckpoint(EncodeCheckpoint(s));
   ASSERT_TRUE(back.ok()) << back.status().ToString();
@@ -147,31 +165,27 @@ TEST(CheckpointTest, TrackedMeshRoundTripsAndVersionOneFilesStillLoad) {
   bad = s;
   bad.tracked.positions[7] = std::nanf("");
   EXPECT_FALSE(DecodeCheckpoint(EncodeCheckpoint(bad)).ok());
+  for (const FeatureLink& link : {FeatureLink{5, 0, 4, 2}, FeatureLink{5, 7, 0, 0}, FeatureLink{5, 0, 0, -1}}) {
+    bad = s;
+    bad.links.push_back(link);
+    EXPECT_FALSE(bad.Validate().ok());
+    EXPECT_FALSE(DecodeCheckpoint(EncodeCheckpoint(bad)).ok());
+  }
 
-  // Version 1: the same payload without the three (empty) tracked arrays, re-digested.
-  const EngineState plain = SmallState(5);
-  const std::string v2 = EncodeCheckpoint(plain);
-  const size_t header = 8 + 8 + 32;
-  std::string payload = v2.substr(header, v2.size() - header - 3 * sizeof(uint64_t));
-  const uint32_t one = 1;
-  std::memcpy(payload.data(), &one, sizeof(one));
-  std::string v1 = v2.substr(0, 8);
-  const uint64_t size = payload.size();
-  v1.append(reinterpret_cast<const char*>(&size), sizeof(size));
-  const Sha256Digest digest = Sha256(payload.data(), payload.size());
-  v1.append(reinterpret_cast<const char*>(digest.data()), digest.size());
-  v1 += payload;
-  auto old = DecodeCheckpoint(v1);
-  ASSERT_TRUE(old.ok()) << old.status().ToString();
-  ExpectSame(plain, *old);
-  EXPECT_TRUE(old->tracked.triangles.empty());
-  // Any other version is refused by name.
-  std::string v3 = v2;
-  const uint32_t three = 3;
-  std::memcpy(v3.data() + header, &three, sizeof(three));
-  const Sha256Digest d3 = Sha256(v3.data() + header, v3.size() - header);
-  std::memcpy(v3.data() + 16, d3.data(), d3.size());
-  EXPECT_NE(DecodeCheckpoint(v3).status().message().find("version 3"), std::string::npos);
+  EngineState plain = SmallState(5);
+  plain.links.clear();
+  const std::string current = EncodeCheckpoint(plain);
+  // Version 2: no links array; version 1: no tracked arrays either.
+  for (auto [version, dropped] : {std::pair<uint32_t, size_t>{2, 1}, std::pair<uint32_t, size_t>{1, 4}}) {
+    auto old = DecodeCheckpoint(AsOlderVersion(current, version, dropped));
+    ASSERT_TRUE(old.ok()) << version << ": " << old.status().ToString();
+    ExpectSame(plain, *old);
+    EXPECT_TRUE(old->tracked.triangles.empty());
+    EXPECT_TRUE(old->links.empty());
+  }
+  // A newer version is refused by name.
+  const std::string v4 = AsOlderVersion(current, 4, 0);
+  EXPECT_NE(DecodeCheckpoint(v4).status().message().find("version 4"), std::string::npos);
 }
 
 // The tube (40-frame take) and two engines at 6 mm: one runs on, the other resumes from its

@@ -162,6 +162,79 @@ TEST(FeatureHistoryTest, CandidatesStayBoundedAndSpanTheHistory) {
   EXPECT_EQ(h.num_frames(), 5000u);
 }
 
+// Frame `index` with features at the given canonical points (w = 0: not lifted).
+FrameFeatures FeaturesAt(int index, const std::vector<vd_float4>& canonical) {
+  FrameFeatures f;
+  f.seq = f.frame_index = index;
+  for (const vd_float4& c : canonical) {
+    f.u.push_back(1.f);
+    f.v.push_back(1.f);
+    f.size.push_back(1.f);
+    f.angle.push_back(0.f);
+    f.camera_points.push_back(VD_F4(0.f, 0.f, 1.f, 1.f));
+    f.canonical.push_back(c);
+  }
+  f.desc.assign(canonical.size() * VD_DESC_BYTES, uint8_t(index & 255));
+  return f;
+}
+
+SparseMatch MatchOf(int cur, int frame, int feature) {
+  SparseMatch m;
+  m.cur = cur;
+  m.frame = frame;
+  m.feature = feature;
+  return m;
+}
+
+// Matches become links between stored features (indices after the unlifted ones are dropped); the
+// adjustment pulls a later keyframe's points onto the first frame's, linked or not; links to frames
+// the policy drops go with them.
+TEST(FeatureHistoryTest, MatchesBecomeLinksThatTheAdjustmentCloses) {
+  FeatureHistory h;
+  h.Add(FeaturesAt(0, {VD_F4(10.f, 10.f, 10.f, 1.f), VD_F4(0.f, 0.f, 0.f, 0.f), VD_F4(14.f, 10.f, 10.f, 1.f)}), 1);
+  // Keyframe 1 lifted 2 voxels off along x: its keypoint 1 is frame 0's stored feature 1 (keypoint
+  // 2), keypoint 2 is new; keypoint 0 did not lift, so its match is no link.
+  h.Add(FeaturesAt(1, {VD_F4(0.f, 0.f, 0.f, 0.f), VD_F4(16.f, 10.f, 10.f, 1.f), VD_F4(13.f, 11.f, 10.f, 1.f)}), 1,
+        {MatchOf(0, 0, 0), MatchOf(1, 0, 1)});
+  ASSERT_EQ(h.keyframes().size(), 2u);
+  ASSERT_EQ(h.links().size(), 1u);
+  const FeatureLink l = h.links()[0];
+  EXPECT_EQ(l.frame_a, 1);
+  EXPECT_EQ(l.feature_a, 0);
+  EXPECT_EQ(l.frame_b, 0);
+  EXPECT_EQ(l.feature_b, 1);
+  // Frame 2 (no keyframe) matched keyframe 1's new feature, and lifted it where it belongs.
+  h.Add(FeaturesAt(2, {VD_F4(11.f, 11.f, 10.f, 1.f)}), 100, {MatchOf(0, 1, 1)});
+  ASSERT_EQ(h.links().size(), 2u);
+
+  BundleParams bp;
+  bp.prior = 1e-6f;
+  BundleStats stats;
+  ASSERT_TRUE(h.Adjust(bp, &stats).ok());
+  EXPECT_EQ(stats.free_frames, 1);
+  EXPECT_EQ(stats.links, 2);
+  EXPECT_NEAR(stats.rms_before, 2.0, 1e-5);
+  EXPECT_LT(stats.rms_after, 1e-3);
+  EXPECT_NEAR(h.frame(1).canonical[0].x, 14.f, 1e-3f);
+  EXPECT_NEAR(h.frame(1).canonical[1].x, 11.f, 1e-3f);
+  EXPECT_NEAR(h.frame(1).canonical[1].y, 11.f, 1e-3f);
+  // The first frame and the recent frame stay.
+  EXPECT_EQ(h.frame(0).canonical[1].x, 14.f);
+  EXPECT_EQ(h.frame(2).canonical[0].x, 11.f);
+  // Off: nothing moves.
+  const float before = h.frame(1).canonical[1].x;
+  bp.keyframes = 0;
+  ASSERT_TRUE(h.Adjust(bp, &stats).ok());
+  EXPECT_EQ(h.frame(1).canonical[1].x, before);
+  // Frame 2 (no keyframe, and no recent frames kept) is dropped, and its link with it.
+  FeatureParams p;
+  p.recent_frames = 0;
+  h.Compact(p);
+  EXPECT_EQ(h.num_frames(), 2u);
+  ASSERT_EQ(h.links().size(), 1u);
+  EXPECT_EQ(h.links()[0].frame_a, 1);
+}
+
 // Lifting on the bending tube: every stored feature deformed by the field lands on its observed
 // point (1 mm), and its canonical point is near the true material point of the observation.
 TEST(FeatureEngineTest, LiftedFeaturesDeformBackOntoTheObservationAndMatchesAreCorrect) {

@@ -58,6 +58,10 @@ struct SceneErrors {
   // Sparse features per frame (means): detected, lifted, matches used; detection + description ms.
   double mean_features = 0, mean_lifted = 0, mean_matches = 0, mean_extract_ms = 0, mean_match_ms = 0,
          mean_lift_ms = 0;
+  // Keyframe bundle adjustment per frame (means): ms, links, nodes, link disagreement before and
+  // after (voxels).
+  double mean_bundle_ms = 0, mean_bundle_links = 0, mean_bundle_nodes = 0, mean_bundle_rms_before = 0,
+         mean_bundle_rms_after = 0;
 };
 
 struct SceneRun {
@@ -153,6 +157,11 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
     out.mean_extract_ms += r.feature_extract_ms;
     out.mean_match_ms += r.feature_match_ms;
     out.mean_lift_ms += r.feature_lift_ms;
+    out.mean_bundle_ms += r.bundle_ms;
+    out.mean_bundle_links += r.bundle.links;
+    out.mean_bundle_nodes += r.bundle.nodes;
+    out.mean_bundle_rms_before += r.bundle.rms_before;
+    out.mean_bundle_rms_after += r.bundle.rms_after;
     const TriangleMesh gt = scene->GroundTruthMesh(k);
     const MeshDistance dist(gt);
     double s = 0;
@@ -212,6 +221,11 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
         const ClosestPoint c = gt0.Closest(V(r.canonical_mesh, i));
         const Eigen::Vector3f truth_k = MeshDistance::Evaluate(gt, c.where);
         d += (truth_k - V(r.live_mesh, i)).norm();
+        if (k == last && getenv("VD_DRIFT_DUMP")) {
+          static FILE* fp = fopen(getenv("VD_DRIFT_DUMP"), "w");
+          const Eigen::Vector3f c0 = V(r.canonical_mesh, i), l = V(r.live_mesh, i);
+          fprintf(fp, "%f %f %f %f %f %f %f %f %f\n", c0.x(), c0.y(), c0.z(), l.x(), l.y(), l.z(), truth_k.x(), truth_k.y(), truth_k.z());
+        }
         // Non-rigid displacement: live vertex vs its canonical vertex moved rigidly by the pose.
         const Eigen::Vector3f rigid = (cam_from_world * V(r.canonical_mesh, i).homogeneous()).head<3>();
         nr += (rigid - V(r.live_mesh, i)).norm();
@@ -253,6 +267,9 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   out.mean_extract_ms /= n;
   out.mean_match_ms /= n;
   out.mean_lift_ms /= n;
+  for (double* v : {&out.mean_bundle_ms, &out.mean_bundle_links, &out.mean_bundle_nodes, &out.mean_bundle_rms_before,
+                    &out.mean_bundle_rms_after})
+    *v /= n;
   for (double& v : out.stage_ms) v /= n;
   out.total_ms /= n;
   out.process_wall_ms /= n;

@@ -8,6 +8,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <type_traits>
 
@@ -18,8 +19,9 @@ namespace vd {
 namespace {
 
 constexpr char kMagic[8] = {'V', 'D', 'C', 'K', 'P', 'T', '0', '1'};
-// 2: the tracked mesh after the keyframes. Version 1 files (no tracked mesh) are still read.
-constexpr uint32_t kFormatVersion = 2;
+// 2: the tracked mesh after the keyframes. 3: the feature links after the tracked mesh. Version 1
+// and 2 files (no tracked mesh, no links) are still read.
+constexpr uint32_t kFormatVersion = 3;
 constexpr size_t kMaxTrackedVertices = size_t(1) << 24;
 constexpr size_t kHeaderBytes = 8 + 8 + 32;
 constexpr int kBrick = 8;
@@ -32,6 +34,7 @@ constexpr float kRestTolerance = 1e-6f;
 constexpr size_t kMaxVoxels = size_t(1) << 31;
 constexpr size_t kMaxKeypoints = 1 << 20;
 constexpr size_t kMaxHistoryFrames = 1 << 20;
+constexpr size_t kMaxLinks = 1 << 26;
 
 class Writer {
  public:
@@ -168,6 +171,14 @@ Status EngineState::Validate() const {
     if (k <= last || k >= int(history.size())) return InvalidArgument("checkpoint keyframe list is invalid");
     last = k;
   }
+  std::map<int64_t, size_t> features;
+  for (const FrameFeatures& f : history) features[f.frame_index] = f.size_keypoints();
+  for (const FeatureLink& l : links) {
+    auto a = features.find(l.frame_a), b = features.find(l.frame_b);
+    if (a == features.end() || b == features.end() || l.feature_a < 0 || size_t(l.feature_a) >= a->second ||
+        l.feature_b < 0 || size_t(l.feature_b) >= b->second)
+      return InvalidArgument("checkpoint feature link names a feature the history does not have");
+  }
   const size_t nv = tracked.num_vertices();
   if (tracked.positions.size() != 3 * nv || (!tracked.colors.empty() && tracked.colors.size() != 3 * nv) ||
       tracked.triangles.size() % 3 != 0 || (nv == 0) != tracked.triangles.empty())
@@ -228,6 +239,7 @@ std::string EncodeCheckpoint(const EngineState& s) {
   w.PutVector(s.tracked.positions);
   w.PutVector(s.tracked.colors);
   w.PutVector(s.tracked.triangles);
+  w.PutVector(s.links);
   const std::string& payload = w.bytes();
   std::string out(kMagic, sizeof(kMagic));
   const uint64_t size = payload.size();
@@ -253,8 +265,8 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
   EngineState s;
   uint32_t version = 0, struct_size = 0;
   VD_RETURN_IF_ERROR(r.Get(&version, "version"));
-  if (version != kFormatVersion && version != 1)
-    return DataLoss("checkpoint format version " + std::to_string(version) + " is not 1 or " +
+  if (version < 1 || version > kFormatVersion)
+    return DataLoss("checkpoint format version " + std::to_string(version) + " is not 1 to " +
                     std::to_string(kFormatVersion));
   VD_RETURN_IF_ERROR(r.Get(&struct_size, "volume size"));
   if (struct_size != sizeof(VdVolume)) return DataLoss("checkpoint volume record has the wrong size");
@@ -324,6 +336,7 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
     VD_RETURN_IF_ERROR(r.GetVector(&s.tracked.colors, 3 * kMaxTrackedVertices, "tracked colours"));
     VD_RETURN_IF_ERROR(r.GetVector(&s.tracked.triangles, 6 * kMaxTrackedVertices, "tracked faces"));
   }
+  if (version >= 3) VD_RETURN_IF_ERROR(r.GetVector(&s.links, kMaxLinks, "feature links"));
   if (r.remaining() != 0) return DataLoss("checkpoint has " + std::to_string(r.remaining()) + " trailing bytes");
   if (!AllFinite(s.tsdf) || !AllFinite(s.weight) || !AllFinite(s.def_pos) || !AllFinite(s.def_rot))
     return DataLoss("checkpoint volume holds non-finite values");

@@ -33,6 +33,8 @@ struct EngineState {
   int64_t frames_seen = 0;
   std::vector<FrameFeatures> history;
   std::vector<int> keyframes;
+  // Matched pairs of stored features (the bundle adjustment's links).
+  std::vector<FeatureLink> links;
   // The fixed-topology tracked mesh (--track-mesh) in canonical world metres, once fixed (the
   // first frame's canonical mesh or the given one): positions, colours (empty or 3 per vertex) and
   // faces, so a resumed run goes on deforming the same vertices. Empty when not tracking.

@@ -230,6 +230,7 @@ Status Engine::SaveState(EngineState* state) {
   s.frames_seen = frames_seen_;
   s.history = history_.frames();
   s.keyframes = history_.keyframes();
+  s.links = history_.links();
   s.tracked = track_mesh_ ? tracked_canonical_ : TriangleMesh();
   return Status::Ok();
 }
@@ -262,7 +263,7 @@ Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
   pose_ = model_pose_ = s.pose;
   frames_fused_ = s.frames_fused;
   frames_seen_ = s.frames_seen;
-  history_.Restore(s.history, s.keyframes);
+  history_.Restore(s.history, s.keyframes, s.links);
   initialised_ = true;
   // The tracked mesh goes on with the vertices it had (a run that tracks a given mesh keeps that).
   if (track_mesh_ && !s.tracked.triangles.empty() && track_given_.positions.empty()) {
@@ -767,10 +768,21 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     VD_RETURN_IF_ERROR(matcher_.Lift(&features, live_, mesh_, volume_, ToVdPose(pose_), ToVdPose(pose_.inverse()),
                                      !nonrigid));
     for (const vd_float4& g : features.canonical) result.features_lifted += g.w > 0.f;
-    history_.Add(std::move(features), params_.features.keyframe_interval);
+    const int64_t index = features.frame_index;
+    history_.Add(std::move(features), params_.features.keyframe_interval, matches_);
     history_.Compact(params_.features);
     result.feature_lift_ms = MsSince(t0);
     result.times[Stage::kFeatures] += result.feature_lift_ms;
+    // The adjustment runs when this frame became a keyframe: it is corrected before later frames
+    // match against it.
+    const BundleParams& bundle = params_.features.bundle;
+    const std::vector<int>& keyframes = history_.keyframes();
+    if (bundle.keyframes > 0 && !keyframes.empty() && history_.frame(keyframes.back()).frame_index == index) {
+      t0 = Clock::now();
+      VD_RETURN_IF_ERROR(history_.Adjust(bundle, &result.bundle));
+      result.bundle_ms = MsSince(t0);
+      result.times[Stage::kFeatures] += result.bundle_ms;
+    }
   }
   if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0 && params_.field_rigid_threshold > 0.f) {
     t0 = Clock::now();

@@ -169,6 +169,10 @@ struct FrameResult {
   // The two parts of the "features" stage: matching against the history, lifting into canonical.
   double feature_match_ms = 0.0;
   double feature_lift_ms = 0.0;
+  // The keyframe bundle adjustment when it ran this frame (FeatureHistory::Adjust): its time (part
+  // of the "features" stage) and what it did.
+  double bundle_ms = 0.0;
+  BundleStats bundle;
 };
 
 class Engine {

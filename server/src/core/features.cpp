@@ -5,6 +5,7 @@
 #include <cmath>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
+#include <set>
 #include <sstream>
 #include <tuple>
 
@@ -66,7 +67,7 @@ Status FeatureParams::Validate() const {
   if (!(lift_max_depth_gap > 0.f)) return ParamOutOfBounds("FeatureParams", "lift_max_depth_gap", lift_max_depth_gap, "> 0");
   if (!(lift_tolerance > 0.f)) return ParamOutOfBounds("FeatureParams", "lift_tolerance", lift_tolerance, "> 0");
   if (!(lift_iterations >= 1 && lift_iterations <= 50)) return ParamOutOfBounds("FeatureParams", "lift_iterations", lift_iterations, "1..50");
-  return Status::Ok();
+  return bundle.Validate();
 }
 
 void FeatureParams::Bind(FlagParser* f) {
@@ -102,6 +103,7 @@ void FeatureParams::Bind(FlagParser* f) {
          "A keypoint is lifted only where the rendered surface is within this of its depth, metres");
   f->Add("lift-tolerance", &lift_tolerance, "Newton on S(g) = f stops at this residual, metres");
   f->Add("lift-iterations", &lift_iterations, "Newton iterations of the lift at most");
+  bundle.Bind(f);
 }
 
 StatusOr<FrameFeatures> ExtractFeatures(const RgbdFrame& frame, const FeatureParams& params, float min_depth,
@@ -280,14 +282,16 @@ void AsyncFeatureExtractor::Clear() {
   for (auto& fut : retired) fut.wait();
 }
 
-void FeatureHistory::Add(FrameFeatures f, int keyframe_interval) {
+void FeatureHistory::Add(FrameFeatures f, int keyframe_interval, const std::vector<SparseMatch>& matches) {
   // Only lifted features can anchor anything.
   FrameFeatures k;
   k.seq = f.seq;
   k.frame_index = f.frame_index;
   k.extract_ms = f.extract_ms;
+  std::vector<int32_t> stored(f.size_keypoints(), -1);
   for (size_t i = 0; i < f.size_keypoints(); ++i) {
     if (i >= f.canonical.size() || !(f.canonical[i].w > 0.f)) continue;
+    stored[i] = int32_t(k.u.size());
     k.u.push_back(f.u[i]);
     k.v.push_back(f.v[i]);
     k.size.push_back(f.size[i]);
@@ -297,6 +301,13 @@ void FeatureHistory::Add(FrameFeatures f, int keyframe_interval) {
     k.desc.insert(k.desc.end(), f.desc.begin() + i * VD_DESC_BYTES, f.desc.begin() + (i + 1) * VD_DESC_BYTES);
   }
   if (k.size_keypoints() == 0) return;
+  for (const SparseMatch& m : matches) {
+    if (m.cur < 0 || size_t(m.cur) >= stored.size() || stored[m.cur] < 0) continue;
+    if (m.frame < 0 || size_t(m.frame) >= frames_.size()) continue;
+    const FrameFeatures& old = frames_[m.frame];
+    if (m.feature < 0 || size_t(m.feature) >= old.size_keypoints()) continue;
+    links_.push_back({k.frame_index, old.frame_index, stored[m.cur], int32_t(m.feature)});
+  }
   const int pos = int(frames_.size());
   if (keyframes_.empty() || k.frame_index - frames_[keyframes_.back()].frame_index >= keyframe_interval)
     keyframes_.push_back(pos);
@@ -352,6 +363,45 @@ void FeatureHistory::Compact(const FeatureParams& params) {
   keyframes_.clear();
   for (int k : keep_kf) keyframes_.push_back(new_index[k]);
   frames_.swap(frames);
+  std::set<int64_t> kept_frames;
+  for (const FrameFeatures& f : frames_) kept_frames.insert(f.frame_index);
+  links_.erase(std::remove_if(links_.begin(), links_.end(),
+                              [&](const FeatureLink& l) {
+                                return !kept_frames.count(l.frame_a) || !kept_frames.count(l.frame_b);
+                              }),
+               links_.end());
+}
+
+Status FeatureHistory::Adjust(const BundleParams& params, BundleStats* stats) {
+  *stats = BundleStats();
+  const int n = int(frames_.size());
+  if (params.keyframes <= 0 || n < 2) return Status::Ok();
+  // Free: the newest params.keyframes keyframes, never the first. The recent frames between them
+  // stay as lifted: they leave the history within a few frames, and correcting them too raised the
+  // tube's drift by 10 % (docs/BENCHMARKS.md "Long takes").
+  std::vector<char> free(n, 0);
+  const int num_kf = int(keyframes_.size());
+  for (int k = std::max(1, num_kf - params.keyframes); k < num_kf; ++k) free[keyframes_[k]] = 1;
+  std::map<int64_t, int> position;
+  std::vector<std::vector<vd_float4>> points(n);
+  for (int i = 0; i < n; ++i) {
+    position[frames_[i].frame_index] = i;
+    if (free[i]) points[i] = frames_[i].canonical;
+  }
+  std::vector<BundleLink> links;
+  for (const FeatureLink& l : links_) {
+    auto a = position.find(l.frame_a), b = position.find(l.frame_b);
+    if (a == position.end() || b == position.end()) continue;
+    if (!free[a->second] && !free[b->second]) continue;
+    // The fixed side's point as it is.
+    for (int f : {a->second, b->second})
+      if (points[f].empty()) points[f] = frames_[f].canonical;
+    links.push_back({a->second, l.feature_a, b->second, l.feature_b});
+  }
+  VD_RETURN_IF_ERROR(SolveBundle(params, free, links, &points, stats));
+  for (int i = 0; i < n; ++i)
+    if (free[i]) frames_[i].canonical = std::move(points[i]);
+  return Status::Ok();
 }
 
 size_t FeatureHistory::num_features() const {

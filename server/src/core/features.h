@@ -11,6 +11,7 @@
 #include <mutex>
 #include <vector>
 
+#include "core/bundle.h"
 #include "ocl/device_ops.h"
 #include "shared/features.h"
 #include "vd/common/frame.h"
@@ -69,6 +70,8 @@ struct FeatureParams {
   float lift_max_depth_gap = 0.03f;
   float lift_tolerance = 1e-4f;
   int lift_iterations = 8;
+  // The keyframe bundle adjustment of the history's canonical points (core/bundle.h).
+  BundleParams bundle;
   Status Validate() const;
   // Registers a flag for every field; the fields' values now are the defaults --help shows.
   void Bind(FlagParser* flags);
@@ -117,23 +120,48 @@ class AsyncFeatureExtractor {
   std::vector<std::shared_future<StatusOr<FrameFeatures>>> retired_;
 };
 
-// Every frame's lifted features and the candidate choice of the history policy.
+struct SparseMatch;
+
+// Two stored features that matched (the same material point): feature `feature_a` of the frame
+// with frame_index `frame_a` and `feature_b` of `frame_b` (indices into the stored, lifted features).
+// No padding: checkpoints store it as bytes.
+struct FeatureLink {
+  int64_t frame_a = -1;
+  int64_t frame_b = -1;
+  int32_t feature_a = -1;
+  int32_t feature_b = -1;
+};
+static_assert(sizeof(FeatureLink) == 24, "FeatureLink is written to checkpoints as bytes");
+
+// Every frame's lifted features, the matches between them, and the candidate choice of the history
+// policy.
 class FeatureHistory {
  public:
-  void Clear() { frames_.clear(); keyframes_.clear(); }
-  // Keeps the frame's lifted features (the others cannot anchor anything).
-  void Add(FrameFeatures f, int keyframe_interval);
+  void Clear() {
+    frames_.clear();
+    keyframes_.clear();
+    links_.clear();
+  }
+  // Keeps the frame's lifted features (the others cannot anchor anything), and as links the
+  // `matches` (of this frame's keypoints, against the history as it is now) whose keypoint lifted.
+  void Add(FrameFeatures f, int keyframe_interval, const std::vector<SparseMatch>& matches = {});
   // History positions to match frame `next_index` against (FeatureParams's policy).
   std::vector<int> Candidates(const FeatureParams& params) const;
-  // Drops what the policy can never match again (see FeatureParams::max_stored_keyframes).
+  // Drops what the policy can never match again (see FeatureParams::max_stored_keyframes), and the
+  // links to it.
   void Compact(const FeatureParams& params);
-  // The stored frames and the positions of the keyframes among them (checkpoints).
+  // The keyframe bundle adjustment (core/bundle.h): the canonical points of the newest
+  // params.keyframes keyframes (the first frame's never) are corrected so that linked features agree.
+  Status Adjust(const BundleParams& params, BundleStats* stats);
+  // The stored frames, the positions of the keyframes among them, the links (checkpoints).
   const std::vector<FrameFeatures>& frames() const { return frames_; }
   const std::vector<int>& keyframes() const { return keyframes_; }
+  const std::vector<FeatureLink>& links() const { return links_; }
   // Replaces the contents (resume from a checkpoint; validated by the caller).
-  void Restore(std::vector<FrameFeatures> frames, std::vector<int> keyframes) {
+  void Restore(std::vector<FrameFeatures> frames, std::vector<int> keyframes, std::vector<FeatureLink> links) {
     frames_ = std::move(frames);
     keyframes_ = std::move(keyframes);
+    links_ = std::move(links);
   }
   size_t num_frames() const { return frames_.size(); }
   const FrameFeatures& frame(int i) const { return frames_[i]; }
@@ -142,6 +170,7 @@ class FeatureHistory {
  private:
   std::vector<FrameFeatures> frames_;
   std::vector<int> keyframes_;
+  std::vector<FeatureLink> links_;
 };
 
 // A surviving match: current keypoint `cur` observed at `target` (world) is the material point
