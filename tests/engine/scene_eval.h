@@ -221,11 +221,6 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
         const ClosestPoint c = gt0.Closest(V(r.canonical_mesh, i));
         const Eigen::Vector3f truth_k = MeshDistance::Evaluate(gt, c.where);
         d += (truth_k - V(r.live_mesh, i)).norm();
-        if (k == last && getenv("VD_DRIFT_DUMP")) {
-          static FILE* fp = fopen(getenv("VD_DRIFT_DUMP"), "w");
-          const Eigen::Vector3f c0 = V(r.canonical_mesh, i), l = V(r.live_mesh, i);
-          fprintf(fp, "%f %f %f %f %f %f %f %f %f\n", c0.x(), c0.y(), c0.z(), l.x(), l.y(), l.z(), truth_k.x(), truth_k.y(), truth_k.z());
-        }
         // Non-rigid displacement: live vertex vs its canonical vertex moved rigidly by the pose.
         const Eigen::Vector3f rigid = (cam_from_world * V(r.canonical_mesh, i).homogeneous()).head<3>();
         nr += (rigid - V(r.live_mesh, i)).norm();
