@@ -401,22 +401,42 @@ StatusOr<VdVolume> Engine::PlaceVolume(const RgbdFrame& frame, const EngineParam
   VdVolume vol{};
   float mn[3], ext[3];
   int dims[3];
-  for (int a = 0; a < 3; ++a) {
-    const float margin = p.volume_margin + 2.f * trunc;
-    mn[a] = lo[a] - margin;
-    ext[a] = hi[a] - lo[a] + 2.f * margin;
-  }
   // Grid points the memory budget holds.
   const double budget = p.max_grid_mb * 1e6 / (p.rigid_only ? 12.0 : 44.0);
-  // Shrink around the centre until the grid fits the budget (the far part goes first in z).
-  double scale = 1.0;
-  for (int iter = 0; iter < 64; ++iter) {
+  // The box around the first view with `margin` metres of room, `scale` of each side kept; its
+  // grid points.
+  auto place = [&](float margin, double scale) {
     int64_t total = 1;
     for (int a = 0; a < 3; ++a) {
+      const float m = margin + 2.f * trunc;
+      mn[a] = lo[a] - m;
+      ext[a] = hi[a] - lo[a] + 2.f * m;
       dims[a] = std::max(8, static_cast<int>(std::ceil(ext[a] * scale / p.voxel_size)) + 1);
       total *= dims[a];
     }
-    if (double(total) <= budget) break;
+    return double(total);
+  };
+  // The room around the view gives way first: the largest margin up to volume_margin that fits
+  // (cropping the box instead loses the surface the first frame saw; with --volume-margin 1.5 the
+  // tube was lost in 59 of 60 frames, docs/BENCHMARKS.md "Sparse volume").
+  float margin = p.volume_margin;
+  if (place(margin, 1.0) > budget) {
+    float fits = 0.f, fails = margin;
+    if (place(0.f, 1.0) <= budget) {
+      for (int iter = 0; iter < 24; ++iter) {
+        const float mid = 0.5f * (fits + fails);
+        (place(mid, 1.0) <= budget ? fits : fails) = mid;
+      }
+    }
+    margin = fits;
+    VD_LOG_WARNING << "a margin of " << p.volume_margin << " m around the first frame does not fit " << p.max_grid_mb
+                   << " MB of " << p.voxel_size * 1000 << " mm voxels; the grid keeps " << margin << " m";
+  }
+  // Shrink around the centre until the grid fits the budget (the far part goes first in z): only
+  // when the first view alone is larger than the budget.
+  double scale = 1.0;
+  for (int iter = 0; iter < 64; ++iter) {
+    if (place(margin, scale) <= budget) break;
     scale *= 0.95;
   }
   int64_t total = int64_t(dims[0]) * dims[1] * dims[2];
