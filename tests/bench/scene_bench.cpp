@@ -61,9 +61,10 @@ int main(int argc, char** argv) {
               e->mean_features, e->mean_lifted, e->mean_matches, e->mean_extract_ms, e->mean_match_ms,
               e->mean_lift_ms);
   if (e->mean_bundle_links > 0)
-    std::printf("bundle adjustment per frame (mean): %.1f ms, %.0f links, %.0f nodes, disagreement %.2f -> %.2f voxels\n",
-                e->mean_bundle_ms, e->mean_bundle_links, e->mean_bundle_nodes, e->mean_bundle_rms_before,
-                e->mean_bundle_rms_after);
+    std::printf(
+        "bundle adjustment per frame (mean): %.1f ms, %.0f links, %.0f nodes, disagreement %.2f -> %.2f voxels\n",
+        e->mean_bundle_ms, e->mean_bundle_links, e->mean_bundle_nodes, e->mean_bundle_rms_before,
+        e->mean_bundle_rms_after);
   std::printf("active grid points (mean) %.0f, OpenCL buffers peak %.1f MB, resident peak %.1f MB\n",
               e->mean_active_voxels, e->device_peak_bytes / 1e6, vd::PeakResidentBytes() / 1e6);
   return 0;

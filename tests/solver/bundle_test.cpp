@@ -34,7 +34,8 @@ std::vector<vd_float4> Lifted(const std::vector<vd_float4>& truth, const std::ve
 }
 
 // Links between the features of frames a and b that are the same material point.
-void LinkCommon(int a, const std::vector<int>& ids_a, int b, const std::vector<int>& ids_b, std::vector<BundleLink>* out) {
+void LinkCommon(int a, const std::vector<int>& ids_a, int b, const std::vector<int>& ids_b,
+                std::vector<BundleLink>* out) {
   for (size_t i = 0; i < ids_a.size(); ++i)
     for (size_t j = 0; j < ids_b.size(); ++j)
       if (ids_a[i] == ids_b[j]) out->push_back({a, int(i), b, int(j)});

@@ -30,21 +30,21 @@ struct NodeKeyHash {
   }
 };
 
-bool Valid(const vd_float4& p) {
-  return p.w > 0.f && std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
-}
+bool Valid(const vd_float4& p) { return p.w > 0.f && std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
 
 }  // namespace
 
 Status BundleParams::Validate() const {
-  if (!(keyframes >= 0 && keyframes <= 1024)) return ParamOutOfBounds("BundleParams", "keyframes", keyframes, "0..1024");
+  if (!(keyframes >= 0 && keyframes <= 1024))
+    return ParamOutOfBounds("BundleParams", "keyframes", keyframes, "0..1024");
   if (!(cell_voxels >= 1.f && cell_voxels <= 256.f))
     return ParamOutOfBounds("BundleParams", "cell_voxels", cell_voxels, "1..256");
   if (!(smoothness >= 0.f && smoothness <= 1e6f))
     return ParamOutOfBounds("BundleParams", "smoothness", smoothness, "0..1e6");
   if (!(prior > 0.f && prior <= 1e6f)) return ParamOutOfBounds("BundleParams", "prior", prior, "0 < prior <= 1e6");
   if (!(huber_voxels > 0.f)) return ParamOutOfBounds("BundleParams", "huber_voxels", huber_voxels, "> 0");
-  if (!(iterations >= 1 && iterations <= 20)) return ParamOutOfBounds("BundleParams", "iterations", iterations, "1..20");
+  if (!(iterations >= 1 && iterations <= 20))
+    return ParamOutOfBounds("BundleParams", "iterations", iterations, "1..20");
   return Status::Ok();
 }
 
