@@ -24,6 +24,9 @@ typedef ushort vd_ushort;
 #define VD_ATOMIC_MIN_U32(ptr, v) atomic_min((ptr), (v))
 /* cl_khr_int64_extended_atomics (the host checks for it, ocl.cpp); enabled by the kernel file. */
 #define VD_ATOMIC_MIN_U64(ptr, v) atom_min((ptr), (v))
+/* Compare-and-swap and increment of a 32-bit word; both return the old value. */
+#define VD_ATOMIC_CMPXCHG_U32(ptr, expected, v) atomic_cmpxchg((ptr), (expected), (v))
+#define VD_ATOMIC_INC_U32(ptr) atomic_inc(ptr)
 #define VD_FLOAT_AS_UINT(f) as_uint(f)
 
 #else
@@ -64,6 +67,11 @@ inline void VdAtomicMin(U* p, U v) {
 }
 inline void VD_ATOMIC_MIN_U32(vd_uint* p, vd_uint v) { VdAtomicMin(p, v); }
 inline void VD_ATOMIC_MIN_U64(vd_ulong* p, vd_ulong v) { VdAtomicMin(p, v); }
+inline vd_uint VD_ATOMIC_CMPXCHG_U32(vd_uint* p, vd_uint expected, vd_uint v) {
+  __atomic_compare_exchange_n(p, &expected, v, false, __ATOMIC_RELAXED, __ATOMIC_RELAXED);
+  return expected;
+}
+inline vd_uint VD_ATOMIC_INC_U32(vd_uint* p) { return __atomic_fetch_add(p, 1u, __ATOMIC_RELAXED); }
 #endif
 
 /* Lanes: a kernel written over vd_lf / vd_li runs VD_LANES consecutive items per work item, as

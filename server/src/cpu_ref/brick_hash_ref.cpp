@@ -1,0 +1,42 @@
+#include "cpu_ref/brick_hash_ref.h"
+
+#include <algorithm>
+
+namespace vd::cpu {
+
+BrickTable::BrickTable(uint32_t capacity_, uint32_t pool_)
+    : capacity(capacity_), pool(pool_), keys(capacity_, VD_BRICK_EMPTY), slots(capacity_, -1) {}
+
+void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
+                     BrickTable* t) {
+  for (int i = 0; i < cam.width * cam.height; ++i)
+    vd_brick_allocate_pixel(i % cam.width, i / cam.width, depth[i], cam, cam_to_world, truncation, brick_size,
+                            t->keys.data(), t->slots.data(), t->capacity, t->pool, t->counters);
+}
+
+void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* t) {
+  for (size_t i = 0; i < n; ++i)
+    vd_brick_allocate(t->keys.data(), t->slots.data(), t->capacity, t->pool, t->counters, in[i]);
+}
+
+void BrickLookup(const uint32_t* in, size_t n, const BrickTable& t, int32_t* out) {
+  for (size_t i = 0; i < n; ++i) out[i] = vd_brick_find(t.keys.data(), t.slots.data(), t.capacity, in[i]);
+}
+
+BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep) {
+  std::vector<uint32_t> offsets(old.pool);
+  uint32_t kept = 0;
+  const uint32_t used = std::min(old.counters[VD_BRICK_COUNT_TAKEN], old.pool);
+  for (uint32_t s = 0; s < used; ++s) {
+    offsets[s] = kept;
+    kept += keep[s] ? 1u : 0u;
+  }
+  BrickTable t(old.capacity, old.pool);
+  t.counters[VD_BRICK_COUNT_TAKEN] = kept;
+  for (uint32_t e = 0; e < old.capacity; ++e)
+    vd_brick_reinsert(e, old.keys.data(), old.slots.data(), keep, offsets.data(), t.keys.data(), t.slots.data(),
+                      t.capacity, t.counters);
+  return t;
+}
+
+}  // namespace vd::cpu

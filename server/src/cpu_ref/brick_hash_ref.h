@@ -1,0 +1,27 @@
+#pragma once
+// CPU reference of the brick table (server/kernels/brick_hash.cl): the same per-item functions of
+// shared/brick_hash.h looped on the host, in item order.
+#include <cstdint>
+#include <vector>
+
+#include "shared/brick_hash.h"
+
+namespace vd::cpu {
+
+struct BrickTable {
+  uint32_t capacity = 0, pool = 0;
+  std::vector<uint32_t> keys;
+  std::vector<int32_t> slots;
+  uint32_t counters[VD_BRICK_COUNTERS] = {};
+  // An empty table of `capacity` entries (a power of two) for a pool of `pool` bricks.
+  BrickTable(uint32_t capacity, uint32_t pool);
+};
+
+void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
+                     BrickTable* table);
+void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* table);
+void BrickLookup(const uint32_t* in, size_t n, const BrickTable& table, int32_t* out);
+// Keeps the bricks whose slot s has keep[s] != 0, renumbered by the exclusive prefix sum of keep.
+BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep);
+
+}  // namespace vd::cpu

@@ -1,0 +1,77 @@
+// The brick table's launchers (ocl/brick_hash_ocl.h).
+#include "ocl/brick_hash_ocl.h"
+
+#include <utility>
+
+#include "ocl/device_ops.h"
+
+namespace vd::ocl {
+
+StatusOr<BrickTable> BrickTable::Create(Context& ctx, uint32_t pool) {
+  if (pool == 0 || pool > (1u << 28)) return InvalidArgument("brick pool of " + std::to_string(pool) + " bricks");
+  BrickTable t;
+  t.pool_ = pool;
+  t.capacity_ = 1;
+  while (t.capacity_ < 2 * pool) t.capacity_ <<= 1;
+  VD_ASSIGN_OR_RETURN(t.keys_, ctx.Alloc<uint32_t>(t.capacity_));
+  VD_ASSIGN_OR_RETURN(t.slots_, ctx.Alloc<int32_t>(t.capacity_));
+  VD_ASSIGN_OR_RETURN(t.counters_, ctx.Alloc<uint32_t>(VD_BRICK_COUNTERS));
+  VD_RETURN_IF_ERROR(t.Clear(ctx));
+  return t;
+}
+
+Status BrickTable::Clear(Context& ctx) {
+  VD_RETURN_IF_ERROR(ctx.Fill(keys_, VD_BRICK_EMPTY, capacity_));
+  VD_RETURN_IF_ERROR(ctx.Fill(slots_, int32_t(-1), capacity_));
+  return ctx.Fill(counters_, 0u, VD_BRICK_COUNTERS);
+}
+
+Status BrickTable::AllocateFromDepth(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world,
+                                     float truncation, float brick_size) {
+  if (!(brick_size > 0.f) || !(truncation >= 0.f)) return InvalidArgument("brick size and truncation must be positive");
+  if (depth.size() < size_t(cam.width) * cam.height) return InvalidArgument("depth buffer smaller than the camera");
+  return kBrickAllocDepth(ctx, size_t(cam.width) * cam.height, depth, cam, cam_to_world, truncation, brick_size, keys_,
+                          slots_, capacity_, pool_, counters_);
+}
+
+Status BrickTable::Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n) {
+  if (keys.size() < n) return InvalidArgument("fewer keys than asked to insert");
+  return kBrickInsertKeys(ctx, n, keys, keys_, slots_, capacity_, pool_, counters_);
+}
+
+Status BrickTable::Lookup(Context& ctx, const Buffer<uint32_t>& keys, size_t n, Buffer<int32_t>& out) const {
+  if (keys.size() < n || out.size() < n) return InvalidArgument("lookup buffers smaller than n");
+  return kBrickLookup(ctx, n, keys, keys_, slots_, capacity_, out);
+}
+
+Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep) {
+  Context& ctx = ops.ctx();
+  if (keep.size() < pool_) return InvalidArgument("compaction needs one keep flag per pool slot");
+  // Only the slots handed out hold bricks: the prefix sum runs over them.
+  VD_ASSIGN_OR_RETURN(const BrickCounts before, Counts(ctx));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&offsets_, size_t(pool_) + 1));
+  uint32_t kept = 0;
+  if (before.used > 0) VD_RETURN_IF_ERROR(ops.ScanExclusive(keep, before.used, offsets_, &kept));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&new_keys_, capacity_));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&new_slots_, capacity_));
+  VD_RETURN_IF_ERROR(ctx.Fill(new_keys_, VD_BRICK_EMPTY, capacity_));
+  VD_RETURN_IF_ERROR(ctx.Fill(new_slots_, int32_t(-1), capacity_));
+  const uint32_t counts[VD_BRICK_COUNTERS] = {kept, 0u};
+  VD_RETURN_IF_ERROR(ctx.Upload(counters_, counts, VD_BRICK_COUNTERS));
+  VD_RETURN_IF_ERROR(
+      kBrickCompact(ctx, capacity_, keys_, slots_, keep, offsets_, new_keys_, new_slots_, capacity_, counters_));
+  std::swap(keys_, new_keys_);
+  std::swap(slots_, new_slots_);
+  return Status::Ok();
+}
+
+StatusOr<BrickCounts> BrickTable::Counts(Context& ctx) const {
+  uint32_t c[VD_BRICK_COUNTERS] = {};
+  VD_RETURN_IF_ERROR(ctx.Download(counters_, c, VD_BRICK_COUNTERS));
+  BrickCounts out;
+  out.used = c[VD_BRICK_COUNT_TAKEN] < pool_ ? c[VD_BRICK_COUNT_TAKEN] : pool_;
+  out.failed = c[VD_BRICK_COUNT_FAILED];
+  return out;
+}
+
+}  // namespace vd::ocl

@@ -1,0 +1,78 @@
+#pragma once
+// The brick table of the sparse volume on the device (kernels/brick_hash.cl, per-item math in
+// shared/brick_hash.h; docs/SPARSE_VOLUME.md): typed handles of its kernels and the table they
+// work on.
+#include <cstdint>
+
+#include "ocl/kernel.h"
+#include "shared/brick_hash.h"
+
+namespace vd {
+class DeviceOps;
+}  // namespace vd
+
+namespace vd::ocl {
+
+// One item per depth pixel.
+inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                             float brick_size, Buffer<uint32_t>& keys, Buffer<int32_t>& slots, uint32_t capacity,
+                             uint32_t pool, Buffer<uint32_t>& counters)>
+    kBrickAllocDepth{"vd_brick_table_alloc_depth"};
+// One item per key inserted.
+inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
+                             uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
+    kBrickInsertKeys{"vd_brick_table_insert"};
+// One item per key looked up.
+inline constexpr Kernel<void(const Buffer<uint32_t>& in, const Buffer<uint32_t>& keys, const Buffer<int32_t>& slots,
+                             uint32_t capacity, Buffer<int32_t>& out)>
+    kBrickLookup{"vd_brick_table_lookup"};
+// One item per entry of the old table.
+inline constexpr Kernel<void(const Buffer<uint32_t>& old_keys, const Buffer<int32_t>& old_slots,
+                             const Buffer<uint32_t>& keep, const Buffer<uint32_t>& offsets, Buffer<uint32_t>& keys,
+                             Buffer<int32_t>& slots, uint32_t capacity, Buffer<uint32_t>& counters)>
+    kBrickCompact{"vd_brick_table_compact"};
+
+// What the inserting kernels counted since the table was cleared.
+struct BrickCounts {
+  // Pool slots handed out (at most the pool; inserts past it failed).
+  uint32_t used = 0;
+  // Inserts that found no table entry within VD_BRICK_MAX_PROBE, no pool slot, or coordinates
+  // outside the table's range.
+  uint32_t failed = 0;
+};
+
+// A brick table on the device: `capacity` entries (a power of two, at least twice the pool, so
+// probe runs stay short) mapping packed brick coordinates to slots of a pool of `pool` bricks.
+class BrickTable {
+ public:
+  static StatusOr<BrickTable> Create(Context& ctx, uint32_t pool);
+  uint32_t capacity() const { return capacity_; }
+  uint32_t pool() const { return pool_; }
+  const Buffer<uint32_t>& keys() const { return keys_; }
+  const Buffer<int32_t>& slots() const { return slots_; }
+
+  // Empties the table and the counters.
+  Status Clear(Context& ctx);
+  // The bricks the truncation band of a depth image (metres, 0 = none) crosses, at camera pose
+  // cam_to_world, for bricks of brick_size metres.
+  Status AllocateFromDepth(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world,
+                           float truncation, float brick_size);
+  // Inserts n packed keys (a key already there keeps its slot).
+  Status Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n);
+  // The slots of n packed keys (-1: not in the table).
+  Status Lookup(Context& ctx, const Buffer<uint32_t>& keys, size_t n, Buffer<int32_t>& out) const;
+  // Keeps the bricks whose slot s has keep[s] != 0 (keep: one flag per pool slot), renumbered
+  // 0..kept-1 in the order of their old slots (the pool's data moves by the same map).
+  Status Compact(DeviceOps& ops, const Buffer<uint32_t>& keep);
+  StatusOr<BrickCounts> Counts(Context& ctx) const;
+
+ private:
+  uint32_t capacity_ = 0, pool_ = 0;
+  Buffer<uint32_t> keys_, counters_;
+  Buffer<int32_t> slots_;
+  // Compaction scratch: the prefix sum of keep, and the new table.
+  Buffer<uint32_t> offsets_, new_keys_;
+  Buffer<int32_t> new_slots_;
+};
+
+}  // namespace vd::ocl
