@@ -1,23 +1,26 @@
-#include "shared/brick_hash.h"
+#include "shared/sparse_tsdf.h"
 
-/* The brick table of the sparse volume (shared/brick_hash.h). */
+/* The brick table of the sparse volume (shared/brick_hash.h) and fusion into its pool
+ * (shared/sparse_tsdf.h). slot_keys: the key of each pool slot's brick (VD_BRICK_EMPTY: none). */
 
 /* One work item per depth pixel (metres, 0 = none): allocates the bricks its truncation band crosses. */
 __kernel void vd_brick_table_alloc_depth(__global const float* depth, VdCamera cam, VdPose cam_to_world,
                                          float truncation, float brick_size, __global uint* keys, __global int* slots,
-                                         uint capacity, uint pool, __global uint* counters, int vd_items) {
+                                         __global uint* slot_keys, uint capacity, uint pool, __global uint* counters,
+                                         int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
   vd_brick_allocate_pixel(i % cam.width, i / cam.width, depth[i], cam, cam_to_world, truncation, brick_size, keys,
-                          slots, capacity, pool, counters);
+                          slots, slot_keys, capacity, pool, counters);
 }
 
 /* One work item per key of `in` (packed brick coordinates). */
-__kernel void vd_brick_table_insert(__global const uint* in, __global uint* keys, __global int* slots, uint capacity,
-                                    uint pool, __global uint* counters, int vd_items) {
+__kernel void vd_brick_table_insert(__global const uint* in, __global uint* keys, __global int* slots,
+                                    __global uint* slot_keys, uint capacity, uint pool, __global uint* counters,
+                                    int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  vd_brick_allocate(keys, slots, capacity, pool, counters, in[i]);
+  vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, in[i]);
 }
 
 /* One work item per key of `in`: its slot, or -1. */
@@ -31,8 +34,18 @@ __kernel void vd_brick_table_lookup(__global const uint* in, __global const uint
 /* One work item per entry of the old table: kept bricks go into the new one, renumbered. */
 __kernel void vd_brick_table_compact(__global const uint* old_keys, __global const int* old_slots,
                                      __global const uint* keep, __global const uint* offsets, __global uint* keys,
-                                     __global int* slots, uint capacity, __global uint* counters, int vd_items) {
+                                     __global int* slots, __global uint* slot_keys, uint capacity,
+                                     __global uint* counters, int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  vd_brick_reinsert((uint)i, old_keys, old_slots, keep, offsets, keys, slots, capacity, counters);
+  vd_brick_reinsert((uint)i, old_keys, old_slots, keep, offsets, keys, slots, slot_keys, capacity, counters);
+}
+
+/* One work item per pool voxel of the slots in use: rigid fusion of the depth frame. */
+__kernel void vd_sparse_integrate(__global const uint* slot_keys, __global float* tsdf, __global float* weight,
+                                  __global uint* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                                  __global const float* depth, __global const uint* rgba, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  vd_sparse_integrate_voxel(i, slot_keys, tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
 }

@@ -77,10 +77,11 @@ VD_INLINE int vd_brick_insert(VD_GLOBAL vd_uint* keys, vd_uint capacity, vd_uint
   return -1;
 }
 
-/* Inserts a key and, when it is new, gives its entry the next pool slot (-1 and a failure when
- * the pool of `pool` slots is used up). Returns 0 on a failure, else 1. */
-VD_INLINE int vd_brick_allocate(VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, vd_uint capacity, vd_uint pool,
-                                VD_GLOBAL vd_uint* counters, vd_uint key) {
+/* Inserts a key and, when it is new, gives its entry the next pool slot and records the key as
+ * the slot's (slot_keys: one per pool slot); -1 and a failure when the pool of `pool` slots is
+ * used up. Returns 0 on a failure, else 1. */
+VD_INLINE int vd_brick_allocate(VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys,
+                                vd_uint capacity, vd_uint pool, VD_GLOBAL vd_uint* counters, vd_uint key) {
   int fresh = 0;
   int h = vd_brick_insert(keys, capacity, key, &fresh);
   if (h < 0) {
@@ -95,6 +96,7 @@ VD_INLINE int vd_brick_allocate(VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, v
     return 0;
   }
   slots[h] = (int)slot;
+  slot_keys[slot] = key;
   return 1;
 }
 
@@ -105,18 +107,13 @@ VD_INLINE void vd_brick_of(vd_float4 p, float brick_size, int* bx, int* by, int*
   *bz = (int)floor(p.z / brick_size);
 }
 
-/* Allocation from one depth pixel (u, v) at depth d (metres, > 0): every brick the ray segment of
- * its truncation band, from d - truncation to d + truncation, passes through (a 3D DDA over the
- * brick grid, so a brick the segment only clips at a corner is not skipped). Returns the failures. */
-VD_INLINE int vd_brick_allocate_pixel(int u, int v, float d, VdCamera cam, VdPose cam_to_world, float truncation,
-                                      float brick_size, VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, vd_uint capacity,
-                                      vd_uint pool, VD_GLOBAL vd_uint* counters) {
-  if (!(d > 0.0f)) return 0;
-  float rx = ((float)u - cam.cx) / cam.fx, ry = ((float)v - cam.cy) / cam.fy;
-  float near_d = d - truncation, far_d = d + truncation;
-  if (near_d < 0.0f) near_d = 0.0f;
-  vd_float4 a = vd_pose_apply(cam_to_world, VD_F4(rx * near_d, ry * near_d, near_d, 1.0f));
-  vd_float4 b = vd_pose_apply(cam_to_world, VD_F4(rx * far_d, ry * far_d, far_d, 1.0f));
+/* The bricks the segment from a to b (world, metres) passes through, by a 3D DDA over the brick
+ * grid (so a brick the segment only clips at a corner is not skipped), each inserted unless it is
+ * among the `*n_seen` keys in seen[] (the bricks this pixel's other rays inserted; at most 16
+ * remembered). Returns the failures. */
+VD_INLINE int vd_brick_allocate_segment(vd_float4 a, vd_float4 b, float brick_size, VD_GLOBAL vd_uint* keys,
+                                        VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys, vd_uint capacity,
+                                        vd_uint pool, VD_GLOBAL vd_uint* counters, vd_uint* seen, int* n_seen) {
   float pa[3] = {a.x / brick_size, a.y / brick_size, a.z / brick_size};
   float dir[3] = {b.x / brick_size - pa[0], b.y / brick_size - pa[1], b.z / brick_size - pa[2]};
   int cell[3], step[3];
@@ -134,8 +131,14 @@ VD_INLINE int vd_brick_allocate_pixel(int u, int v, float d, VdCamera cam, VdPos
     if (!vd_brick_coords_valid(cell[0], cell[1], cell[2])) {
       VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
       ++failures;
-    } else if (!vd_brick_allocate(keys, slots, capacity, pool, counters, vd_brick_pack(cell[0], cell[1], cell[2]))) {
-      ++failures;
+    } else {
+      vd_uint key = vd_brick_pack(cell[0], cell[1], cell[2]);
+      int known = 0;
+      for (int j = 0; j < *n_seen; ++j) known |= seen[j] == key;
+      if (!known) {
+        if (*n_seen < 16) seen[(*n_seen)++] = key;
+        if (!vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, key)) ++failures;
+      }
     }
     int k = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
     if (t_max[k] > 1.0f) break;
@@ -145,13 +148,40 @@ VD_INLINE int vd_brick_allocate_pixel(int u, int v, float d, VdCamera cam, VdPos
   return failures;
 }
 
+/* Allocation from one depth pixel (u, v) at depth d (metres, > 0): every brick that the pixel's
+ * frustum within its truncation band (depth d - truncation to d + truncation) reaches, through the
+ * segments of its centre ray and its four corner rays. Fusion sends a grid point to the pixel its
+ * centre projects to, so a point the pixel fuses lies inside that frustum, up to half a pixel off
+ * the centre ray: the centre ray alone left 15 of the 183115 fused near-surface points of the
+ * parity test's scene (8 mm voxels) outside every brick. Returns the failures. */
+VD_INLINE int vd_brick_allocate_pixel(int u, int v, float d, VdCamera cam, VdPose cam_to_world, float truncation,
+                                      float brick_size, VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots,
+                                      VD_GLOBAL vd_uint* slot_keys, vd_uint capacity, vd_uint pool,
+                                      VD_GLOBAL vd_uint* counters) {
+  if (!(d > 0.0f)) return 0;
+  float near_d = d - truncation, far_d = d + truncation;
+  if (near_d < 0.0f) near_d = 0.0f;
+  vd_uint seen[16];
+  int n_seen = 0, failures = 0;
+  for (int r = 0; r < 5; ++r) {
+    float du = r == 0 ? 0.0f : ((r & 1) ? -0.5f : 0.5f), dv = r == 0 ? 0.0f : (r < 3 ? -0.5f : 0.5f);
+    float rx = ((float)u + du - cam.cx) / cam.fx, ry = ((float)v + dv - cam.cy) / cam.fy;
+    vd_float4 a = vd_pose_apply(cam_to_world, VD_F4(rx * near_d, ry * near_d, near_d, 1.0f));
+    vd_float4 b = vd_pose_apply(cam_to_world, VD_F4(rx * far_d, ry * far_d, far_d, 1.0f));
+    failures +=
+        vd_brick_allocate_segment(a, b, brick_size, keys, slots, slot_keys, capacity, pool, counters, seen, &n_seen);
+  }
+  return failures;
+}
+
 /* Compaction, one old table entry: a key whose slot is kept goes into the new table with the slot
  * `offsets[old slot]` (the exclusive prefix sum of `keep` over the old slots, so the kept bricks
- * take slots 0..kept-1 in their old order, whatever order the entries are visited in). */
+ * take slots 0..kept-1 in their old order, whatever order the entries are visited in), recorded
+ * in the new slot_keys. */
 VD_INLINE void vd_brick_reinsert(vd_uint entry, VD_GLOBAL const vd_uint* old_keys, VD_GLOBAL const int* old_slots,
                                  VD_GLOBAL const vd_uint* keep, VD_GLOBAL const vd_uint* offsets,
-                                 VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, vd_uint capacity,
-                                 VD_GLOBAL vd_uint* counters) {
+                                 VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys,
+                                 vd_uint capacity, VD_GLOBAL vd_uint* counters) {
   vd_uint key = old_keys[entry];
   int slot = old_slots[entry];
   if (key == VD_BRICK_EMPTY || slot < 0 || !keep[slot]) return;
@@ -162,6 +192,7 @@ VD_INLINE void vd_brick_reinsert(vd_uint entry, VD_GLOBAL const vd_uint* old_key
     return;
   }
   slots[h] = (int)offsets[slot];
+  slot_keys[offsets[slot]] = key;
 }
 
 #endif /* VD_BRICK_HASH_H */

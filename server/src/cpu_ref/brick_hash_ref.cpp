@@ -5,18 +5,22 @@
 namespace vd::cpu {
 
 BrickTable::BrickTable(uint32_t capacity_, uint32_t pool_)
-    : capacity(capacity_), pool(pool_), keys(capacity_, VD_BRICK_EMPTY), slots(capacity_, -1) {}
+    : capacity(capacity_),
+      pool(pool_),
+      keys(capacity_, VD_BRICK_EMPTY),
+      slots(capacity_, -1),
+      slot_keys(pool_, VD_BRICK_EMPTY) {}
 
 void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
                      BrickTable* t) {
   for (int i = 0; i < cam.width * cam.height; ++i)
     vd_brick_allocate_pixel(i % cam.width, i / cam.width, depth[i], cam, cam_to_world, truncation, brick_size,
-                            t->keys.data(), t->slots.data(), t->capacity, t->pool, t->counters);
+                            t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, t->counters);
 }
 
 void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* t) {
   for (size_t i = 0; i < n; ++i)
-    vd_brick_allocate(t->keys.data(), t->slots.data(), t->capacity, t->pool, t->counters, in[i]);
+    vd_brick_allocate(t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, t->counters, in[i]);
 }
 
 void BrickLookup(const uint32_t* in, size_t n, const BrickTable& t, int32_t* out) {
@@ -35,8 +39,15 @@ BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep) {
   t.counters[VD_BRICK_COUNT_TAKEN] = kept;
   for (uint32_t e = 0; e < old.capacity; ++e)
     vd_brick_reinsert(e, old.keys.data(), old.slots.data(), keep, offsets.data(), t.keys.data(), t.slots.data(),
-                      t.capacity, t.counters);
+                      t.slot_keys.data(), t.capacity, t.counters);
   return t;
+}
+
+void SparseIntegrate(const BrickTable& table, float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam,
+                     VdPose world_to_cam, const float* depth, const uint32_t* rgba) {
+  const int used = int(std::min(table.counters[VD_BRICK_COUNT_TAKEN], table.pool));
+  for (int i = 0; i < used * VD_BRICK_VOXELS; ++i)
+    vd_sparse_integrate_voxel(i, table.slot_keys.data(), tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd::cpu

@@ -4,7 +4,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "shared/brick_hash.h"
+#include "shared/sparse_tsdf.h"
 
 namespace vd::cpu {
 
@@ -12,6 +12,7 @@ struct BrickTable {
   uint32_t capacity = 0, pool = 0;
   std::vector<uint32_t> keys;
   std::vector<int32_t> slots;
+  std::vector<uint32_t> slot_keys;
   uint32_t counters[VD_BRICK_COUNTERS] = {};
   // An empty table of `capacity` entries (a power of two) for a pool of `pool` bricks.
   BrickTable(uint32_t capacity, uint32_t pool);
@@ -23,5 +24,8 @@ void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* table);
 void BrickLookup(const uint32_t* in, size_t n, const BrickTable& table, int32_t* out);
 // Keeps the bricks whose slot s has keep[s] != 0, renumbered by the exclusive prefix sum of keep.
 BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep);
+// Rigid fusion into a pool (tsdf, weight, colour: 512 per slot of table.slot_keys).
+void SparseIntegrate(const BrickTable& table, float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam,
+                     VdPose world_to_cam, const float* depth, const uint32_t* rgba);
 
 }  // namespace vd::cpu

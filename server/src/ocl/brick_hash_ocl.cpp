@@ -15,6 +15,7 @@ StatusOr<BrickTable> BrickTable::Create(Context& ctx, uint32_t pool) {
   while (t.capacity_ < 2 * pool) t.capacity_ <<= 1;
   VD_ASSIGN_OR_RETURN(t.keys_, ctx.Alloc<uint32_t>(t.capacity_));
   VD_ASSIGN_OR_RETURN(t.slots_, ctx.Alloc<int32_t>(t.capacity_));
+  VD_ASSIGN_OR_RETURN(t.slot_keys_, ctx.Alloc<uint32_t>(pool));
   VD_ASSIGN_OR_RETURN(t.counters_, ctx.Alloc<uint32_t>(VD_BRICK_COUNTERS));
   VD_RETURN_IF_ERROR(t.Clear(ctx));
   return t;
@@ -23,6 +24,7 @@ StatusOr<BrickTable> BrickTable::Create(Context& ctx, uint32_t pool) {
 Status BrickTable::Clear(Context& ctx) {
   VD_RETURN_IF_ERROR(ctx.Fill(keys_, VD_BRICK_EMPTY, capacity_));
   VD_RETURN_IF_ERROR(ctx.Fill(slots_, int32_t(-1), capacity_));
+  VD_RETURN_IF_ERROR(ctx.Fill(slot_keys_, VD_BRICK_EMPTY, pool_));
   return ctx.Fill(counters_, 0u, VD_BRICK_COUNTERS);
 }
 
@@ -31,12 +33,12 @@ Status BrickTable::AllocateFromDepth(Context& ctx, const Buffer<float>& depth, V
   if (!(brick_size > 0.f) || !(truncation >= 0.f)) return InvalidArgument("brick size and truncation must be positive");
   if (depth.size() < size_t(cam.width) * cam.height) return InvalidArgument("depth buffer smaller than the camera");
   return kBrickAllocDepth(ctx, size_t(cam.width) * cam.height, depth, cam, cam_to_world, truncation, brick_size, keys_,
-                          slots_, capacity_, pool_, counters_);
+                          slots_, slot_keys_, capacity_, pool_, counters_);
 }
 
 Status BrickTable::Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n) {
   if (keys.size() < n) return InvalidArgument("fewer keys than asked to insert");
-  return kBrickInsertKeys(ctx, n, keys, keys_, slots_, capacity_, pool_, counters_);
+  return kBrickInsertKeys(ctx, n, keys, keys_, slots_, slot_keys_, capacity_, pool_, counters_);
 }
 
 Status BrickTable::Lookup(Context& ctx, const Buffer<uint32_t>& keys, size_t n, Buffer<int32_t>& out) const {
@@ -56,12 +58,15 @@ Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep) {
   VD_RETURN_IF_ERROR(ctx.Reserve(&new_slots_, capacity_));
   VD_RETURN_IF_ERROR(ctx.Fill(new_keys_, VD_BRICK_EMPTY, capacity_));
   VD_RETURN_IF_ERROR(ctx.Fill(new_slots_, int32_t(-1), capacity_));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&new_slot_keys_, pool_));
+  VD_RETURN_IF_ERROR(ctx.Fill(new_slot_keys_, VD_BRICK_EMPTY, pool_));
   const uint32_t counts[VD_BRICK_COUNTERS] = {kept, 0u};
   VD_RETURN_IF_ERROR(ctx.Upload(counters_, counts, VD_BRICK_COUNTERS));
-  VD_RETURN_IF_ERROR(
-      kBrickCompact(ctx, capacity_, keys_, slots_, keep, offsets_, new_keys_, new_slots_, capacity_, counters_));
+  VD_RETURN_IF_ERROR(kBrickCompact(ctx, capacity_, keys_, slots_, keep, offsets_, new_keys_, new_slots_, new_slot_keys_,
+                                   capacity_, counters_));
   std::swap(keys_, new_keys_);
   std::swap(slots_, new_slots_);
+  std::swap(slot_keys_, new_slot_keys_);
   return Status::Ok();
 }
 
@@ -72,6 +77,30 @@ StatusOr<BrickCounts> BrickTable::Counts(Context& ctx) const {
   out.used = c[VD_BRICK_COUNT_TAKEN] < pool_ ? c[VD_BRICK_COUNT_TAKEN] : pool_;
   out.failed = c[VD_BRICK_COUNT_FAILED];
   return out;
+}
+
+StatusOr<BrickPool> BrickPool::Create(Context& ctx, uint32_t slots) {
+  if (slots == 0) return InvalidArgument("a brick pool needs at least one slot");
+  const size_t n = size_t(slots) * VD_BRICK_VOXELS;
+  BrickPool p;
+  p.slots = slots;
+  VD_ASSIGN_OR_RETURN(p.tsdf, ctx.Alloc<float>(n));
+  VD_ASSIGN_OR_RETURN(p.weight, ctx.Alloc<float>(n));
+  VD_ASSIGN_OR_RETURN(p.color, ctx.Alloc<uint32_t>(n));
+  VD_RETURN_IF_ERROR(ctx.Fill(p.tsdf, 1.0f, n));
+  VD_RETURN_IF_ERROR(ctx.Fill(p.weight, 0.0f, n));
+  VD_RETURN_IF_ERROR(ctx.Fill(p.color, 0u, n));
+  return p;
+}
+
+Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, VdVolume vol, VdCamera cam,
+                       VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba) {
+  if (pool.slots < table.pool()) return InvalidArgument("the brick pool is smaller than the table's");
+  if (depth.size() < size_t(cam.width) * cam.height || rgba.size() < size_t(cam.width) * cam.height)
+    return InvalidArgument("depth or colour buffer smaller than the camera");
+  VD_ASSIGN_OR_RETURN(const BrickCounts counts, table.Counts(ctx));
+  return kSparseIntegrate(ctx, size_t(counts.used) * VD_BRICK_VOXELS, table.slot_keys(), pool.tsdf, pool.weight,
+                          pool.color, vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd::ocl

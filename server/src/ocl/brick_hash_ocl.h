@@ -5,7 +5,7 @@
 #include <cstdint>
 
 #include "ocl/kernel.h"
-#include "shared/brick_hash.h"
+#include "shared/sparse_tsdf.h"
 
 namespace vd {
 class DeviceOps;
@@ -15,12 +15,12 @@ namespace vd::ocl {
 
 // One item per depth pixel.
 inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation,
-                             float brick_size, Buffer<uint32_t>& keys, Buffer<int32_t>& slots, uint32_t capacity,
-                             uint32_t pool, Buffer<uint32_t>& counters)>
+                             float brick_size, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
+                             Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
     kBrickAllocDepth{"vd_brick_table_alloc_depth"};
 // One item per key inserted.
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
-                             uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
+                             Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
     kBrickInsertKeys{"vd_brick_table_insert"};
 // One item per key looked up.
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, const Buffer<uint32_t>& keys, const Buffer<int32_t>& slots,
@@ -29,8 +29,14 @@ inline constexpr Kernel<void(const Buffer<uint32_t>& in, const Buffer<uint32_t>&
 // One item per entry of the old table.
 inline constexpr Kernel<void(const Buffer<uint32_t>& old_keys, const Buffer<int32_t>& old_slots,
                              const Buffer<uint32_t>& keep, const Buffer<uint32_t>& offsets, Buffer<uint32_t>& keys,
-                             Buffer<int32_t>& slots, uint32_t capacity, Buffer<uint32_t>& counters)>
+                             Buffer<int32_t>& slots, Buffer<uint32_t>& slot_keys, uint32_t capacity,
+                             Buffer<uint32_t>& counters)>
     kBrickCompact{"vd_brick_table_compact"};
+// One item per pool voxel of the slots in use.
+inline constexpr Kernel<void(const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf, Buffer<float>& weight,
+                             Buffer<uint32_t>& color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                             const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
+    kSparseIntegrate{"vd_sparse_integrate"};
 
 // What the inserting kernels counted since the table was cleared.
 struct BrickCounts {
@@ -50,6 +56,8 @@ class BrickTable {
   uint32_t pool() const { return pool_; }
   const Buffer<uint32_t>& keys() const { return keys_; }
   const Buffer<int32_t>& slots() const { return slots_; }
+  // The key of each pool slot's brick (VD_BRICK_EMPTY: none).
+  const Buffer<uint32_t>& slot_keys() const { return slot_keys_; }
 
   // Empties the table and the counters.
   Status Clear(Context& ctx);
@@ -68,11 +76,27 @@ class BrickTable {
 
  private:
   uint32_t capacity_ = 0, pool_ = 0;
-  Buffer<uint32_t> keys_, counters_;
+  Buffer<uint32_t> keys_, slot_keys_, counters_;
   Buffer<int32_t> slots_;
   // Compaction scratch: the prefix sum of keep, and the new table.
-  Buffer<uint32_t> offsets_, new_keys_;
+  Buffer<uint32_t> offsets_, new_keys_, new_slot_keys_;
   Buffer<int32_t> new_slots_;
 };
+
+// The voxels of a brick pool: TSDF (normalised, 1 at rest), weight and colour, 512 per slot, slot
+// s's brick is the table's slot_keys[s].
+struct BrickPool {
+  Buffer<float> tsdf, weight;
+  Buffer<uint32_t> color;
+  uint32_t slots = 0;
+  // A pool of `slots` bricks at rest.
+  static StatusOr<BrickPool> Create(Context& ctx, uint32_t slots);
+};
+
+// Rigid fusion of a depth frame (metres, 0 = none) and its colour into the bricks `table` holds,
+// seen through world_to_cam; vol gives voxel_size, truncation and max_weight (the bricks tile space
+// from the world origin).
+Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, VdVolume vol, VdCamera cam,
+                       VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba);
 
 }  // namespace vd::ocl
