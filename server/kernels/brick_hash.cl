@@ -3,15 +3,16 @@
 /* The brick table of the sparse volume (shared/brick_hash.h) and fusion into its pool
  * (shared/sparse_tsdf.h). slot_keys: the key of each pool slot's brick (VD_BRICK_EMPTY: none). */
 
-/* One work item per depth pixel (metres, 0 = none): allocates the bricks its truncation band crosses. */
+/* One work item per depth tile (VD_DEPTH_TILE^2 pixels; metres, 0 = none): allocates the bricks
+ * its truncation band reaches. */
 __kernel void vd_brick_table_alloc_depth(__global const float* depth, VdCamera cam, VdPose cam_to_world,
                                          float truncation, float brick_size, __global uint* keys, __global int* slots,
                                          __global uint* slot_keys, uint capacity, uint pool, __global uint* counters,
                                          int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  vd_brick_allocate_pixel(i % cam.width, i / cam.width, depth[i], cam, cam_to_world, truncation, brick_size, keys,
-                          slots, slot_keys, capacity, pool, counters);
+  vd_brick_take_tile(VD_BRICK_ALLOCATE, i, depth, cam, cam_to_world, truncation, brick_size, keys, slots, slot_keys,
+                     capacity, pool, 0, 0u, 0, counters);
 }
 
 /* One work item per key of `in` (packed brick coordinates). */
@@ -41,11 +42,24 @@ __kernel void vd_brick_table_compact(__global const uint* old_keys, __global con
   vd_brick_reinsert((uint)i, old_keys, old_slots, keep, offsets, keys, slots, slot_keys, capacity, counters);
 }
 
-/* One work item per pool voxel of the slots in use: rigid fusion of the depth frame. */
-__kernel void vd_sparse_integrate(__global const uint* slot_keys, __global float* tsdf, __global float* weight,
-                                  __global uint* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
-                                  __global const float* depth, __global const uint* rgba, int vd_items) {
+/* One work item per depth tile: lists the bricks its band reaches, once each per frame. */
+__kernel void vd_brick_table_list(__global const float* depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                                  float brick_size, __global uint* keys, __global int* slots, uint capacity,
+                                  __global uint* stamp, uint frame, __global int* visible, __global uint* counters,
+                                  int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  vd_sparse_integrate_voxel(i, slot_keys, tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
+  vd_brick_take_tile(VD_BRICK_LIST, i, depth, cam, cam_to_world, truncation, brick_size, keys, slots, 0, capacity, 0u,
+                     stamp, frame, visible, counters);
+}
+
+/* One work item per voxel of the listed bricks: rigid fusion of the depth frame. */
+__kernel void vd_sparse_integrate(__global const int* visible, __global const uint* slot_keys, __global float* tsdf,
+                                  __global float* weight, __global uint* color, VdVolume vol, VdCamera cam,
+                                  VdPose world_to_cam, __global const float* depth, __global const uint* rgba,
+                                  int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  vd_sparse_integrate_voxel(visible[i / VD_BRICK_VOXELS], i % VD_BRICK_VOXELS, slot_keys, tsdf, weight, color, vol, cam,
+                            world_to_cam, depth, rgba);
 }

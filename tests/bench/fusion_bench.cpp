@@ -2,19 +2,24 @@
 // 7-Scenes-layout folder integrated with their ground-truth poses, integration timed per frame
 // (depth conversion and upload untimed, like Open3D's RGBDImage preparation), then one marching
 // cubes extraction. The grid is placed from frame 0 as the server places it with --rigid-only.
-//   vd_fusion_bench --data DIR [--voxel-size M] [--frames N]
-// Prints key value lines: integrate_mean_ms, integrate_median_ms, extract_ms, triangles, bricks_mean.
+// --sparse 1 fuses into the brick table and pool of the sparse volume instead (docs/SPARSE_VOLUME.md:
+// allocation from each frame's depth, then fusion into the bricks; no extraction yet).
+//   vd_fusion_bench --data DIR [--voxel-size M] [--frames N] [--sparse 1]
+// Prints key value lines: integrate_mean_ms, integrate_median_ms, extract_ms, triangles, bricks_mean;
+// with --sparse: integrate_mean_ms, integrate_median_ms, bricks_used, bricks_failed, pool_mb (12 bytes a
+// voxel, as --rigid-only), first_frame_grid_mb, same_extent_dense_mb (the bricks' bounding box, dense).
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <opencv2/imgproc.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
-#include <opencv2/imgproc.hpp>
-
 #include "core/engine.h"
+#include "ocl/brick_hash_ocl.h"
 #include "ocl/device_ops.h"
 #include "vd/capture/source.h"
 
@@ -44,8 +49,11 @@ int Main(int argc, char** argv) {
   std::string data;
   float voxel = 0.01f;
   int frames = 100;
+  bool sparse = false;
   for (int i = 1; i + 1 < argc; i += 2) {
     if (!std::strcmp(argv[i], "--data")) data = argv[i + 1];
+    else if (!std::strcmp(argv[i], "--sparse"))
+      sparse = std::stoi(argv[i + 1]) != 0;
     else if (!std::strcmp(argv[i], "--voxel-size")) voxel = std::stof(argv[i + 1]);
     else if (!std::strcmp(argv[i], "--frames")) frames = std::stoi(argv[i + 1]);
     else Check(InvalidArgument(std::string("unknown flag ") + argv[i]));
@@ -80,7 +88,24 @@ int Main(int argc, char** argv) {
   const int w = k.width, h = k.height, n = w * h;
   const VdCamera cam{k.fx, k.fy, k.cx, k.cy, w, h, 0, 0};
   DeviceVolume dv;
-  Check(ops.AllocVolume(*vol, false, &dv));
+  // The sparse volume: a pool of as many bricks as the dense grid's memory budget holds.
+  std::optional<ocl::BrickTable> table;
+  std::optional<ocl::BrickPool> pool;
+  VdVolume brick_vol{};
+  if (sparse) {
+    const uint32_t slots = uint32_t(params.max_grid_mb * 1e6 / (12.0 * VD_BRICK_VOXELS));
+    auto t = ocl::BrickTable::Create(*ctx, slots);
+    Check(t.status());
+    table.emplace(std::move(*t));
+    auto p = ocl::BrickPool::Create(*ctx, slots);
+    Check(p.status());
+    pool.emplace(std::move(*p));
+    brick_vol.voxel_size = voxel;
+    brick_vol.truncation = params.truncation_voxels * voxel;
+    brick_vol.max_weight = params.max_weight;
+  } else {
+    Check(ops.AllocVolume(*vol, false, &dv));
+  }
   auto raw = ctx->Alloc<uint16_t>(n);
   auto depth = ctx->Alloc<float>(n);
   auto rgba = ctx->Alloc<uint32_t>(n);
@@ -101,10 +126,50 @@ int Main(int argc, char** argv) {
     // World = frame 0's camera, as the server's.
     const Eigen::Matrix4d world_to_cam = (world0.inverse() * poses[f]).inverse();
     const auto t0 = std::chrono::steady_clock::now();
-    Check(ops.IntegrateTsdf(dv, cam, ToVdPose(world_to_cam), *depth, *rgba));
+    if (sparse) {
+      const VdPose cam_to_world = ToVdPose(world_to_cam.inverse());
+      Check(table->AllocateFromDepth(*ctx, *depth, cam, cam_to_world, brick_vol.truncation, VD_BRICK * voxel));
+      Check(table->ListVisible(*ctx, *depth, cam, cam_to_world, brick_vol.truncation, VD_BRICK * voxel));
+      Check(ocl::IntegrateBricks(*ctx, *table, *pool, brick_vol, cam, ToVdPose(world_to_cam), *depth, *rgba));
+    } else {
+      Check(ops.IntegrateTsdf(dv, cam, ToVdPose(world_to_cam), *depth, *rgba));
+    }
     Check(ctx->Finish());
     times.push_back(Ms(t0));
-    bricks += double(ops.last_integrated_bricks());
+    if (!sparse) bricks += double(ops.last_integrated_bricks());
+    if (sparse) {
+      auto c = table->Counts(*ctx);
+      Check(c.status());
+      bricks += c->visible;
+    }
+  }
+  if (sparse) {
+    auto counts = table->Counts(*ctx);
+    Check(counts.status());
+    double sum = 0;
+    for (double t : times) sum += t;
+    std::vector<double> sorted = times;
+    std::sort(sorted.begin(), sorted.end());
+    std::printf("sparse at %.1f mm, %zu frames, pool %u bricks, device %s\n", voxel * 1000, times.size(), table->pool(),
+                ctx->Describe().c_str());
+    // The dense grid that would hold the same bricks: their bounding box.
+    std::vector<uint32_t> keys(counts->used);
+    if (!keys.empty()) Check(ctx->Download(table->slot_keys(), keys.data(), keys.size()));
+    int lo[3] = {1 << 30, 1 << 30, 1 << 30}, hi[3] = {-(1 << 30), -(1 << 30), -(1 << 30)};
+    for (uint32_t key : keys) {
+      int b[3];
+      vd_brick_unpack(key, &b[0], &b[1], &b[2]);
+      for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], b[a]), hi[a] = std::max(hi[a], b[a]);
+    }
+    double box = 1;
+    for (int a = 0; a < 3; ++a) box *= keys.empty() ? 0.0 : double(hi[a] - lo[a] + 1) * VD_BRICK;
+    std::printf(
+        "integrate_mean_ms %.3f\nintegrate_median_ms %.3f\nbricks_mean %.0f\nbricks_used %u\nbricks_failed %u\n"
+        "pool_mb %.1f\nfirst_frame_grid_mb %.1f\nsame_extent_dense_mb %.1f\n",
+        sum / times.size(), sorted[sorted.size() / 2], bricks / times.size(), counts->used, counts->failed,
+        counts->used * double(VD_BRICK_VOXELS) * 12 / 1e6, double(vol->dim_x) * vol->dim_y * vol->dim_z * 12 / 1e6,
+        box * 12 / 1e6);
+    return 0;
   }
   DeviceMesh mesh;
   Check(ops.MarchingCubes(dv, &mesh));  // warm-up: buffers sized, kernels built

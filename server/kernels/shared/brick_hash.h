@@ -8,6 +8,7 @@
 #ifndef VD_BRICK_HASH_H
 #define VD_BRICK_HASH_H
 
+#include "tsdf.h"
 #include "vd_types.h"
 
 #define VD_BRICK_EMPTY 0xffffffffu
@@ -16,11 +17,13 @@
 /* Probes before an insert or lookup gives up: at the load factors the pool allows (at most half
  * the table) a run this long does not happen; an insert that meets it counts as a failure. */
 #define VD_BRICK_MAX_PROBE 64
-/* Counters the inserting kernels keep (one uint each): pool slots taken (may pass the pool size:
- * those inserts failed), inserts that found no table entry or no pool slot. */
+/* Counters the kernels keep (one uint each): pool slots taken (may pass the pool size: those
+ * inserts failed), inserts that found no table entry or no pool slot. */
 #define VD_BRICK_COUNT_TAKEN 0
 #define VD_BRICK_COUNT_FAILED 1
-#define VD_BRICK_COUNTERS 2
+/* Bricks listed for this frame (vd_brick_list_pixel). */
+#define VD_BRICK_COUNT_VISIBLE 2
+#define VD_BRICK_COUNTERS 3
 
 VD_INLINE int vd_brick_coords_valid(int bx, int by, int bz) {
   return bx >= VD_BRICK_COORD_MIN && bx <= VD_BRICK_COORD_MAX && by >= VD_BRICK_COORD_MIN && by <= VD_BRICK_COORD_MAX &&
@@ -107,70 +110,145 @@ VD_INLINE void vd_brick_of(vd_float4 p, float brick_size, int* bx, int* by, int*
   *bz = (int)floor(p.z / brick_size);
 }
 
-/* The bricks the segment from a to b (world, metres) passes through, by a 3D DDA over the brick
- * grid (so a brick the segment only clips at a corner is not skipped), each inserted unless it is
- * among the `*n_seen` keys in seen[] (the bricks this pixel's other rays inserted; at most 16
- * remembered). Returns the failures. */
-VD_INLINE int vd_brick_allocate_segment(vd_float4 a, vd_float4 b, float brick_size, VD_GLOBAL vd_uint* keys,
-                                        VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys, vd_uint capacity,
-                                        vd_uint pool, VD_GLOBAL vd_uint* counters, vd_uint* seen, int* n_seen) {
-  float pa[3] = {a.x / brick_size, a.y / brick_size, a.z / brick_size};
-  float dir[3] = {b.x / brick_size - pa[0], b.y / brick_size - pa[1], b.z / brick_size - pa[2]};
+/* A 3D DDA over the brick grid along the segment from a to b (world, metres): every brick the
+ * segment passes through, in order, so a brick it only clips at a corner is not skipped. */
+typedef struct {
   int cell[3], step[3];
   float t_max[3], t_delta[3];
+} VdBrickWalk;
+
+VD_INLINE void vd_brick_walk_begin(VdBrickWalk* w, vd_float4 a, vd_float4 b, float brick_size) {
+  float pa[3] = {a.x / brick_size, a.y / brick_size, a.z / brick_size};
+  float dir[3] = {b.x / brick_size - pa[0], b.y / brick_size - pa[1], b.z / brick_size - pa[2]};
   for (int k = 0; k < 3; ++k) {
-    cell[k] = (int)floor(pa[k]);
-    step[k] = dir[k] > 0.0f ? 1 : -1;
-    float boundary = dir[k] > 0.0f ? (float)(cell[k] + 1) : (float)cell[k];
-    t_max[k] = dir[k] != 0.0f ? (boundary - pa[k]) / dir[k] : 3.4e38f;
-    t_delta[k] = dir[k] != 0.0f ? fabs(1.0f / dir[k]) : 3.4e38f;
+    w->cell[k] = (int)floor(pa[k]);
+    w->step[k] = dir[k] > 0.0f ? 1 : -1;
+    float boundary = dir[k] > 0.0f ? (float)(w->cell[k] + 1) : (float)w->cell[k];
+    w->t_max[k] = dir[k] != 0.0f ? (boundary - pa[k]) / dir[k] : 3.4e38f;
+    w->t_delta[k] = dir[k] != 0.0f ? fabs(1.0f / dir[k]) : 3.4e38f;
   }
+}
+
+/* Moves to the next brick; 0 when the segment ends in the current one. */
+VD_INLINE int vd_brick_walk_next(VdBrickWalk* w) {
+  int k = w->t_max[0] < w->t_max[1] ? (w->t_max[0] < w->t_max[2] ? 0 : 2) : (w->t_max[1] < w->t_max[2] ? 1 : 2);
+  if (w->t_max[k] > 1.0f) return 0;
+  w->cell[k] += w->step[k];
+  w->t_max[k] += w->t_delta[k];
+  return 1;
+}
+
+/* The segment between depths near_d and far_d, in world coordinates, of the ray through image
+ * point (u, v) (pixel-edge coordinates). */
+VD_INLINE void vd_brick_ray_segment(float u, float v, float near_d, float far_d, VdCamera cam, VdPose cam_to_world,
+                                    vd_float4* a, vd_float4* b) {
+  float rx = (u - cam.cx) / cam.fx, ry = (v - cam.cy) / cam.fy;
+  *a = vd_pose_apply(cam_to_world, VD_F4(rx * near_d, ry * near_d, near_d, 1.0f));
+  *b = vd_pose_apply(cam_to_world, VD_F4(rx * far_d, ry * far_d, far_d, 1.0f));
+}
+
+/* Whether `key` is among the *n_seen keys of seen[] (the bricks this item's other rays already
+ * took; neighbouring rays mostly cross the same bricks); remembers it (up to 16) when not. */
+VD_INLINE int vd_brick_seen(vd_uint key, vd_uint* seen, int* n_seen) {
+  for (int j = 0; j < *n_seen; ++j)
+    if (seen[j] == key) return 1;
+  if (*n_seen < 16) seen[(*n_seen)++] = key;
+  return 0;
+}
+
+/* What a pass over the depth's bricks does with each: allocate it, or list its slot once per frame
+ * (after the allocation, when every slot is written): stamp[slot] takes `frame`, and a slot whose
+ * stamp did not hold it already goes into visible[] (counted by counters[VD_BRICK_COUNT_VISIBLE]). */
+#define VD_BRICK_ALLOCATE 0
+#define VD_BRICK_LIST 1
+
+/* One brick of a pass; returns 1 on a failure. */
+VD_INLINE int vd_brick_take(int mode, int bx, int by, int bz, VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots,
+                            VD_GLOBAL vd_uint* slot_keys, vd_uint capacity, vd_uint pool, VD_GLOBAL vd_uint* stamp,
+                            vd_uint frame, VD_GLOBAL int* visible, VD_GLOBAL vd_uint* counters, vd_uint* seen,
+                            int* n_seen) {
+  if (!vd_brick_coords_valid(bx, by, bz)) {
+    if (mode == VD_BRICK_ALLOCATE) VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
+    return mode == VD_BRICK_ALLOCATE;
+  }
+  vd_uint key = vd_brick_pack(bx, by, bz);
+  if (vd_brick_seen(key, seen, n_seen)) return 0;
+  if (mode == VD_BRICK_ALLOCATE) return !vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, key);
+  int slot = vd_brick_find(keys, slots, capacity, key);
+  if (slot >= 0 && VD_ATOMIC_XCHG_U32(&stamp[slot], frame) != frame)
+    visible[VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_VISIBLE])] = slot;
+  return 0;
+}
+
+/* Every brick the frustum of [u0, u1] x [v0, v1] reaches between near_d and far_d, through a
+ * (k + 1)^2 grid of rays over the rectangle (and its centre ray when k is odd), k chosen so that
+ * neighbouring rays are at most a quarter brick apart at far_d (at most 8), each a quarter brick
+ * longer at both ends. Returns the failures. */
+VD_INLINE int vd_brick_take_frustum(int mode, float u0, float v0, float u1, float v1, float near_d, float far_d,
+                                    VdCamera cam, VdPose cam_to_world, float brick_size, VD_GLOBAL vd_uint* keys,
+                                    VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys, vd_uint capacity, vd_uint pool,
+                                    VD_GLOBAL vd_uint* stamp, vd_uint frame, VD_GLOBAL int* visible,
+                                    VD_GLOBAL vd_uint* counters, vd_uint* seen, int* n_seen) {
+  float span = fmax((u1 - u0) * far_d / cam.fx, (v1 - v0) * far_d / cam.fy);
+  int k = vd_min_i(8, vd_max_i(1, (int)ceil(span / (0.25f * brick_size))));
+  /* A brick can reach into the space between the rays where they start or end: the segments run
+   * a quarter brick further each way. */
+  near_d = fmax(near_d - 0.25f * brick_size, 0.0f);
+  far_d += 0.25f * brick_size;
+  int rays = (k + 1) * (k + 1) + (k & 1);
   int failures = 0;
-  /* Bricks the segment crosses: at most 1 + the sum of |steps| over the axes; capped. */
-  for (int n = 0; n < 64; ++n) {
-    if (!vd_brick_coords_valid(cell[0], cell[1], cell[2])) {
-      VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
-      ++failures;
-    } else {
-      vd_uint key = vd_brick_pack(cell[0], cell[1], cell[2]);
-      int known = 0;
-      for (int j = 0; j < *n_seen; ++j) known |= seen[j] == key;
-      if (!known) {
-        if (*n_seen < 16) seen[(*n_seen)++] = key;
-        if (!vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, key)) ++failures;
-      }
+  for (int r = 0; r < rays; ++r) {
+    float fu = r < (k + 1) * (k + 1) ? (float)(r % (k + 1)) / (float)k : 0.5f;
+    float fv = r < (k + 1) * (k + 1) ? (float)(r / (k + 1)) / (float)k : 0.5f;
+    vd_float4 a, b;
+    vd_brick_ray_segment(u0 + fu * (u1 - u0), v0 + fv * (v1 - v0), near_d, far_d, cam, cam_to_world, &a, &b);
+    VdBrickWalk w;
+    vd_brick_walk_begin(&w, a, b, brick_size);
+    /* At most 1 + the sum of |steps| over the axes; capped. */
+    for (int n = 0; n < 64; ++n) {
+      failures += vd_brick_take(mode, w.cell[0], w.cell[1], w.cell[2], keys, slots, slot_keys, capacity, pool, stamp,
+                                frame, visible, counters, seen, n_seen);
+      if (!vd_brick_walk_next(&w)) break;
     }
-    int k = t_max[0] < t_max[1] ? (t_max[0] < t_max[2] ? 0 : 2) : (t_max[1] < t_max[2] ? 1 : 2);
-    if (t_max[k] > 1.0f) break;
-    cell[k] += step[k];
-    t_max[k] += t_delta[k];
   }
   return failures;
 }
 
-/* Allocation from one depth pixel (u, v) at depth d (metres, > 0): every brick that the pixel's
- * frustum within its truncation band (depth d - truncation to d + truncation) reaches, through the
- * segments of its centre ray and its four corner rays. Fusion sends a grid point to the pixel its
- * centre projects to, so a point the pixel fuses lies inside that frustum, up to half a pixel off
- * the centre ray: the centre ray alone left 15 of the 183115 fused near-surface points of the
- * parity test's scene (8 mm voxels) outside every brick. Returns the failures. */
-VD_INLINE int vd_brick_allocate_pixel(int u, int v, float d, VdCamera cam, VdPose cam_to_world, float truncation,
-                                      float brick_size, VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots,
-                                      VD_GLOBAL vd_uint* slot_keys, vd_uint capacity, vd_uint pool,
-                                      VD_GLOBAL vd_uint* counters) {
-  if (!(d > 0.0f)) return 0;
-  float near_d = d - truncation, far_d = d + truncation;
-  if (near_d < 0.0f) near_d = 0.0f;
+/* A pass over depth tile `tile` (VD_DEPTH_TILE^2 pixels, shared/tsdf.h; depth in metres, 0 = none)
+ * for bricks of brick_size metres: every brick that a fused grid point can lie in. Fusion sends a
+ * grid point to the pixel its centre projects to, with |sdf| < truncation to count, so such a point
+ * lies in that pixel's frustum between d - truncation and d + truncation. A tile whose valid depths
+ * span at most 4 truncations is taken as one frustum over [min - truncation, max + truncation];
+ * any other tile (a depth edge) pixel by pixel. Each frustum through a grid of rays at most a
+ * quarter brick apart: one ray per pixel left 15 of the 183115 fused near-surface points of the
+ * parity test's scene (8 mm voxels) outside every brick, and a tile's four corners bricks of its
+ * coarse test camera. Returns the failures. */
+VD_INLINE int vd_brick_take_tile(int mode, int tile, VD_GLOBAL const float* depth, VdCamera cam, VdPose cam_to_world,
+                                 float truncation, float brick_size, VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots,
+                                 VD_GLOBAL vd_uint* slot_keys, vd_uint capacity, vd_uint pool, VD_GLOBAL vd_uint* stamp,
+                                 vd_uint frame, VD_GLOBAL int* visible, VD_GLOBAL vd_uint* counters) {
+  int tx = tile % vd_depth_tiles_x(cam), ty = tile / vd_depth_tiles_x(cam);
+  int x0 = tx * VD_DEPTH_TILE, y0 = ty * VD_DEPTH_TILE;
+  int x1 = vd_min_i(x0 + VD_DEPTH_TILE, cam.width), y1 = vd_min_i(y0 + VD_DEPTH_TILE, cam.height);
+  vd_float4 range = vd_depth_tile(tile, depth, cam);
+  if (!(range.x <= range.y)) return 0;
   vd_uint seen[16];
-  int n_seen = 0, failures = 0;
-  for (int r = 0; r < 5; ++r) {
-    float du = r == 0 ? 0.0f : ((r & 1) ? -0.5f : 0.5f), dv = r == 0 ? 0.0f : (r < 3 ? -0.5f : 0.5f);
-    float rx = ((float)u + du - cam.cx) / cam.fx, ry = ((float)v + dv - cam.cy) / cam.fy;
-    vd_float4 a = vd_pose_apply(cam_to_world, VD_F4(rx * near_d, ry * near_d, near_d, 1.0f));
-    vd_float4 b = vd_pose_apply(cam_to_world, VD_F4(rx * far_d, ry * far_d, far_d, 1.0f));
-    failures +=
-        vd_brick_allocate_segment(a, b, brick_size, keys, slots, slot_keys, capacity, pool, counters, seen, &n_seen);
-  }
+  int n_seen = 0;
+  if (range.y - range.x <= 4.0f * truncation)
+    return vd_brick_take_frustum(mode, (float)x0 - 0.5f, (float)y0 - 0.5f, (float)x1 - 0.5f, (float)y1 - 0.5f,
+                                 fmax(range.x - truncation, 0.0f), range.y + truncation, cam, cam_to_world, brick_size,
+                                 keys, slots, slot_keys, capacity, pool, stamp, frame, visible, counters, seen,
+                                 &n_seen);
+  int failures = 0;
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) {
+      float d = depth[y * cam.width + x];
+      if (!(d > 0.0f)) continue;
+      failures +=
+          vd_brick_take_frustum(mode, (float)x - 0.5f, (float)y - 0.5f, (float)x + 0.5f, (float)y + 0.5f,
+                                fmax(d - truncation, 0.0f), d + truncation, cam, cam_to_world, brick_size, keys, slots,
+                                slot_keys, capacity, pool, stamp, frame, visible, counters, seen, &n_seen);
+    }
   return failures;
 }
 

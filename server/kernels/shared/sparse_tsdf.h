@@ -1,5 +1,5 @@
 /* TSDF integration into the brick pool of the sparse volume (issue 17; docs/SPARSE_VOLUME.md):
- * pool voxel `item` is voxel v = item % 512 (x fastest) of the brick in slot item / 512. The bricks
+ * pool voxel slot * 512 + v is voxel v (x fastest) of the brick in that slot. The bricks
  * tile space from the world origin, so a voxel's position is its global grid coordinates times the
  * voxel size, and the same per-point fusion as the dense grid's (shared/tsdf.h) runs on it. */
 #ifndef VD_SPARSE_TSDF_H
@@ -19,18 +19,20 @@ VD_INLINE void vd_brick_voxel(vd_uint key, int v, int* gx, int* gy, int* gz) {
   *gz = bz * VD_BRICK + v / (VD_BRICK * VD_BRICK);
 }
 
-/* Rigid integration of pool voxel `item` seen through world_to_cam. vol: voxel_size, truncation
- * and max_weight (its origin and dimensions are not used). A slot without a brick is left alone. */
-VD_INLINE void vd_sparse_integrate_voxel(int item, VD_GLOBAL const vd_uint* slot_keys, VD_GLOBAL float* tsdf,
+/* Rigid integration of voxel v of the brick in pool slot `slot` seen through world_to_cam. vol:
+ * voxel_size, truncation and max_weight (its origin and dimensions are not used). A slot without
+ * a brick is left alone. */
+VD_INLINE void vd_sparse_integrate_voxel(int slot, int v, VD_GLOBAL const vd_uint* slot_keys, VD_GLOBAL float* tsdf,
                                          VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color, VdVolume vol, VdCamera cam,
                                          VdPose world_to_cam, VD_GLOBAL const float* depth,
                                          VD_GLOBAL const vd_uint* rgba) {
-  vd_uint key = slot_keys[item / VD_BRICK_VOXELS];
+  vd_uint key = slot_keys[slot];
   if (key == VD_BRICK_EMPTY) return;
   int gx, gy, gz;
-  vd_brick_voxel(key, item % VD_BRICK_VOXELS, &gx, &gy, &gz);
+  vd_brick_voxel(key, v, &gx, &gy, &gz);
   vd_float4 p = VD_F4(vol.voxel_size * (float)gx, vol.voxel_size * (float)gy, vol.voxel_size * (float)gz, 1.0f);
-  vd_tsdf_integrate_point(tsdf, weight, color, item, vd_pose_apply(world_to_cam, p), vol, cam, depth, rgba);
+  vd_tsdf_integrate_point(tsdf, weight, color, slot * VD_BRICK_VOXELS + v, vd_pose_apply(world_to_cam, p), vol, cam,
+                          depth, rgba);
 }
 
 #endif /* VD_SPARSE_TSDF_H */

@@ -27,6 +27,7 @@ typedef ushort vd_ushort;
 /* Compare-and-swap and increment of a 32-bit word; both return the old value. */
 #define VD_ATOMIC_CMPXCHG_U32(ptr, expected, v) atomic_cmpxchg((ptr), (expected), (v))
 #define VD_ATOMIC_INC_U32(ptr) atomic_inc(ptr)
+#define VD_ATOMIC_XCHG_U32(ptr, v) atomic_xchg((ptr), (v))
 #define VD_FLOAT_AS_UINT(f) as_uint(f)
 
 #else
@@ -72,6 +73,7 @@ inline vd_uint VD_ATOMIC_CMPXCHG_U32(vd_uint* p, vd_uint expected, vd_uint v) {
   return expected;
 }
 inline vd_uint VD_ATOMIC_INC_U32(vd_uint* p) { return __atomic_fetch_add(p, 1u, __ATOMIC_RELAXED); }
+inline vd_uint VD_ATOMIC_XCHG_U32(vd_uint* p, vd_uint v) { return __atomic_exchange_n(p, v, __ATOMIC_RELAXED); }
 #endif
 
 /* Lanes: a kernel written over vd_lf / vd_li runs VD_LANES consecutive items per work item, as

@@ -13,9 +13,9 @@ BrickTable::BrickTable(uint32_t capacity_, uint32_t pool_)
 
 void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
                      BrickTable* t) {
-  for (int i = 0; i < cam.width * cam.height; ++i)
-    vd_brick_allocate_pixel(i % cam.width, i / cam.width, depth[i], cam, cam_to_world, truncation, brick_size,
-                            t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, t->counters);
+  for (int i = 0; i < vd_depth_tiles_x(cam) * vd_depth_tiles_y(cam); ++i)
+    vd_brick_take_tile(VD_BRICK_ALLOCATE, i, depth, cam, cam_to_world, truncation, brick_size, t->keys.data(),
+                       t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, nullptr, 0u, nullptr, t->counters);
 }
 
 void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* t) {
@@ -43,11 +43,25 @@ BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep) {
   return t;
 }
 
-void SparseIntegrate(const BrickTable& table, float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam,
-                     VdPose world_to_cam, const float* depth, const uint32_t* rgba) {
-  const int used = int(std::min(table.counters[VD_BRICK_COUNT_TAKEN], table.pool));
-  for (int i = 0; i < used * VD_BRICK_VOXELS; ++i)
-    vd_sparse_integrate_voxel(i, table.slot_keys.data(), tsdf, weight, color, vol, cam, world_to_cam, depth, rgba);
+std::vector<int32_t> BrickListVisible(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                                      float brick_size, const BrickTable& table) {
+  std::vector<uint32_t> stamp(table.pool, 0u), keys = table.keys;
+  std::vector<int32_t> visible(table.pool), slots = table.slots;
+  uint32_t counters[VD_BRICK_COUNTERS] = {};
+  for (int i = 0; i < vd_depth_tiles_x(cam) * vd_depth_tiles_y(cam); ++i)
+    vd_brick_take_tile(VD_BRICK_LIST, i, depth, cam, cam_to_world, truncation, brick_size, keys.data(), slots.data(),
+                       nullptr, table.capacity, 0u, stamp.data(), 1u, visible.data(), counters);
+  visible.resize(counters[VD_BRICK_COUNT_VISIBLE]);
+  return visible;
+}
+
+void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visible, float* tsdf, float* weight,
+                     uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
+                     const uint32_t* rgba) {
+  for (int32_t slot : visible)
+    for (int v = 0; v < VD_BRICK_VOXELS; ++v)
+      vd_sparse_integrate_voxel(slot, v, table.slot_keys.data(), tsdf, weight, color, vol, cam, world_to_cam, depth,
+                                rgba);
 }
 
 }  // namespace vd::cpu

@@ -24,8 +24,13 @@ void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* table);
 void BrickLookup(const uint32_t* in, size_t n, const BrickTable& table, int32_t* out);
 // Keeps the bricks whose slot s has keep[s] != 0, renumbered by the exclusive prefix sum of keep.
 BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep);
-// Rigid fusion into a pool (tsdf, weight, colour: 512 per slot of table.slot_keys).
-void SparseIntegrate(const BrickTable& table, float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam,
-                     VdPose world_to_cam, const float* depth, const uint32_t* rgba);
+// The slots of the bricks a depth image's band reaches, each once (in the device's order they are
+// a set: compare sorted).
+std::vector<int32_t> BrickListVisible(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                                      float brick_size, const BrickTable& table);
+// Rigid fusion into a pool (tsdf, weight, colour: 512 per slot of table.slot_keys) of the listed slots.
+void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visible, float* tsdf, float* weight,
+                     uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
+                     const uint32_t* rgba);
 
 }  // namespace vd::cpu

@@ -16,6 +16,8 @@ StatusOr<BrickTable> BrickTable::Create(Context& ctx, uint32_t pool) {
   VD_ASSIGN_OR_RETURN(t.keys_, ctx.Alloc<uint32_t>(t.capacity_));
   VD_ASSIGN_OR_RETURN(t.slots_, ctx.Alloc<int32_t>(t.capacity_));
   VD_ASSIGN_OR_RETURN(t.slot_keys_, ctx.Alloc<uint32_t>(pool));
+  VD_ASSIGN_OR_RETURN(t.stamp_, ctx.Alloc<uint32_t>(pool));
+  VD_ASSIGN_OR_RETURN(t.visible_, ctx.Alloc<int32_t>(pool));
   VD_ASSIGN_OR_RETURN(t.counters_, ctx.Alloc<uint32_t>(VD_BRICK_COUNTERS));
   VD_RETURN_IF_ERROR(t.Clear(ctx));
   return t;
@@ -25,6 +27,8 @@ Status BrickTable::Clear(Context& ctx) {
   VD_RETURN_IF_ERROR(ctx.Fill(keys_, VD_BRICK_EMPTY, capacity_));
   VD_RETURN_IF_ERROR(ctx.Fill(slots_, int32_t(-1), capacity_));
   VD_RETURN_IF_ERROR(ctx.Fill(slot_keys_, VD_BRICK_EMPTY, pool_));
+  VD_RETURN_IF_ERROR(ctx.Fill(stamp_, 0u, pool_));
+  frame_ = 0;
   return ctx.Fill(counters_, 0u, VD_BRICK_COUNTERS);
 }
 
@@ -32,8 +36,22 @@ Status BrickTable::AllocateFromDepth(Context& ctx, const Buffer<float>& depth, V
                                      float truncation, float brick_size) {
   if (!(brick_size > 0.f) || !(truncation >= 0.f)) return InvalidArgument("brick size and truncation must be positive");
   if (depth.size() < size_t(cam.width) * cam.height) return InvalidArgument("depth buffer smaller than the camera");
-  return kBrickAllocDepth(ctx, size_t(cam.width) * cam.height, depth, cam, cam_to_world, truncation, brick_size, keys_,
-                          slots_, slot_keys_, capacity_, pool_, counters_);
+  return kBrickAllocDepth(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam, cam_to_world,
+                          truncation, brick_size, keys_, slots_, slot_keys_, capacity_, pool_, counters_);
+}
+
+Status BrickTable::ListVisible(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world,
+                               float truncation, float brick_size) {
+  if (!(brick_size > 0.f) || !(truncation >= 0.f)) return InvalidArgument("brick size and truncation must be positive");
+  if (depth.size() < size_t(cam.width) * cam.height) return InvalidArgument("depth buffer smaller than the camera");
+  const uint32_t zero = 0;
+  VD_RETURN_IF_ERROR(ctx.Upload(counters_, &zero, 1, VD_BRICK_COUNT_VISIBLE));
+  if (++frame_ == 0) {  // wrapped: no stamp may match the new number
+    VD_RETURN_IF_ERROR(ctx.Fill(stamp_, 0u, pool_));
+    frame_ = 1;
+  }
+  return kBrickList(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam, cam_to_world, truncation,
+                    brick_size, keys_, slots_, capacity_, stamp_, frame_, visible_, counters_);
 }
 
 Status BrickTable::Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n) {
@@ -60,7 +78,9 @@ Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep) {
   VD_RETURN_IF_ERROR(ctx.Fill(new_slots_, int32_t(-1), capacity_));
   VD_RETURN_IF_ERROR(ctx.Reserve(&new_slot_keys_, pool_));
   VD_RETURN_IF_ERROR(ctx.Fill(new_slot_keys_, VD_BRICK_EMPTY, pool_));
-  const uint32_t counts[VD_BRICK_COUNTERS] = {kept, 0u};
+  const uint32_t counts[VD_BRICK_COUNTERS] = {kept, 0u, 0u};
+  // Slots are renumbered: no list or stamp of the old numbering stays valid.
+  VD_RETURN_IF_ERROR(ctx.Fill(stamp_, 0u, pool_));
   VD_RETURN_IF_ERROR(ctx.Upload(counters_, counts, VD_BRICK_COUNTERS));
   VD_RETURN_IF_ERROR(kBrickCompact(ctx, capacity_, keys_, slots_, keep, offsets_, new_keys_, new_slots_, new_slot_keys_,
                                    capacity_, counters_));
@@ -76,6 +96,7 @@ StatusOr<BrickCounts> BrickTable::Counts(Context& ctx) const {
   BrickCounts out;
   out.used = c[VD_BRICK_COUNT_TAKEN] < pool_ ? c[VD_BRICK_COUNT_TAKEN] : pool_;
   out.failed = c[VD_BRICK_COUNT_FAILED];
+  out.visible = c[VD_BRICK_COUNT_VISIBLE];
   return out;
 }
 
@@ -99,8 +120,8 @@ Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, V
   if (depth.size() < size_t(cam.width) * cam.height || rgba.size() < size_t(cam.width) * cam.height)
     return InvalidArgument("depth or colour buffer smaller than the camera");
   VD_ASSIGN_OR_RETURN(const BrickCounts counts, table.Counts(ctx));
-  return kSparseIntegrate(ctx, size_t(counts.used) * VD_BRICK_VOXELS, table.slot_keys(), pool.tsdf, pool.weight,
-                          pool.color, vol, cam, world_to_cam, depth, rgba);
+  return kSparseIntegrate(ctx, size_t(counts.visible) * VD_BRICK_VOXELS, table.visible(), table.slot_keys(), pool.tsdf,
+                          pool.weight, pool.color, vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd::ocl

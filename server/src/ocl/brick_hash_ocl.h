@@ -13,7 +13,7 @@ class DeviceOps;
 
 namespace vd::ocl {
 
-// One item per depth pixel.
+// One item per depth tile (vd_depth_tiles_x * vd_depth_tiles_y).
 inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation,
                              float brick_size, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
                              Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
@@ -32,10 +32,16 @@ inline constexpr Kernel<void(const Buffer<uint32_t>& old_keys, const Buffer<int3
                              Buffer<int32_t>& slots, Buffer<uint32_t>& slot_keys, uint32_t capacity,
                              Buffer<uint32_t>& counters)>
     kBrickCompact{"vd_brick_table_compact"};
-// One item per pool voxel of the slots in use.
-inline constexpr Kernel<void(const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf, Buffer<float>& weight,
-                             Buffer<uint32_t>& color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
-                             const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
+// One item per depth tile (the table is only read).
+inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                             float brick_size, Buffer<uint32_t>& keys, Buffer<int32_t>& slots, uint32_t capacity,
+                             Buffer<uint32_t>& stamp, uint32_t frame, Buffer<int32_t>& visible,
+                             Buffer<uint32_t>& counters)>
+    kBrickList{"vd_brick_table_list"};
+// One item per voxel of the listed bricks.
+inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf,
+                             Buffer<float>& weight, Buffer<uint32_t>& color, VdVolume vol, VdCamera cam,
+                             VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
     kSparseIntegrate{"vd_sparse_integrate"};
 
 // What the inserting kernels counted since the table was cleared.
@@ -45,6 +51,8 @@ struct BrickCounts {
   // Inserts that found no table entry within VD_BRICK_MAX_PROBE, no pool slot, or coordinates
   // outside the table's range.
   uint32_t failed = 0;
+  // Bricks the last ListVisible listed.
+  uint32_t visible = 0;
 };
 
 // A brick table on the device: `capacity` entries (a power of two, at least twice the pool, so
@@ -65,6 +73,11 @@ class BrickTable {
   // cam_to_world, for bricks of brick_size metres.
   Status AllocateFromDepth(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world,
                            float truncation, float brick_size);
+  // Lists the slots of the bricks the same depth image's band reaches (after AllocateFromDepth), each
+  // once: the bricks this frame can change.
+  Status ListVisible(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                     float brick_size);
+  const Buffer<int32_t>& visible() const { return visible_; }
   // Inserts n packed keys (a key already there keeps its slot).
   Status Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n);
   // The slots of n packed keys (-1: not in the table).
@@ -76,8 +89,10 @@ class BrickTable {
 
  private:
   uint32_t capacity_ = 0, pool_ = 0;
-  Buffer<uint32_t> keys_, slot_keys_, counters_;
-  Buffer<int32_t> slots_;
+  // The frame number ListVisible stamps slots with (0: never listed).
+  uint32_t frame_ = 0;
+  Buffer<uint32_t> keys_, slot_keys_, counters_, stamp_;
+  Buffer<int32_t> slots_, visible_;
   // Compaction scratch: the prefix sum of keep, and the new table.
   Buffer<uint32_t> offsets_, new_keys_, new_slot_keys_;
   Buffer<int32_t> new_slots_;
@@ -93,8 +108,8 @@ struct BrickPool {
   static StatusOr<BrickPool> Create(Context& ctx, uint32_t slots);
 };
 
-// Rigid fusion of a depth frame (metres, 0 = none) and its colour into the bricks `table` holds,
-// seen through world_to_cam; vol gives voxel_size, truncation and max_weight (the bricks tile space
+// Rigid fusion of a depth frame (metres, 0 = none) and its colour into the bricks of `table` its
+// ListVisible listed, seen through world_to_cam; vol gives voxel_size, truncation and max_weight (the bricks tile space
 // from the world origin).
 Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, VdVolume vol, VdCamera cam,
                        VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba);
