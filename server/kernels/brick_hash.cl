@@ -53,13 +53,13 @@ __kernel void vd_brick_table_list(__global const float* depth, VdCamera cam, VdP
                      stamp, frame, visible, counters);
 }
 
-/* One work item per voxel of the listed bricks: rigid fusion of the depth frame. */
+/* One work item per row (8 voxels along x) of the listed bricks: rigid fusion of the depth frame. */
 __kernel void vd_sparse_integrate(__global const int* visible, __global const uint* slot_keys, __global float* tsdf,
                                   __global float* weight, __global uint* color, VdVolume vol, VdCamera cam,
                                   VdPose world_to_cam, __global const float* depth, __global const uint* rgba,
                                   int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  vd_sparse_integrate_voxel(visible[i / VD_BRICK_VOXELS], i % VD_BRICK_VOXELS, slot_keys, tsdf, weight, color, vol, cam,
-                            world_to_cam, depth, rgba);
+  vd_sparse_integrate_row(visible[i / (VD_BRICK * VD_BRICK)], i % (VD_BRICK * VD_BRICK), slot_keys, tsdf, weight, color,
+                          vol, cam, world_to_cam, depth, rgba);
 }

@@ -19,20 +19,24 @@ VD_INLINE void vd_brick_voxel(vd_uint key, int v, int* gx, int* gy, int* gz) {
   *gz = bz * VD_BRICK + v / (VD_BRICK * VD_BRICK);
 }
 
-/* Rigid integration of voxel v of the brick in pool slot `slot` seen through world_to_cam. vol:
- * voxel_size, truncation and max_weight (its origin and dimensions are not used). A slot without
- * a brick is left alone. */
-VD_INLINE void vd_sparse_integrate_voxel(int slot, int v, VD_GLOBAL const vd_uint* slot_keys, VD_GLOBAL float* tsdf,
-                                         VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color, VdVolume vol, VdCamera cam,
-                                         VdPose world_to_cam, VD_GLOBAL const float* depth,
-                                         VD_GLOBAL const vd_uint* rgba) {
+/* Rigid integration of row r (0..63: y = r % 8, z = r / 8) of the brick in pool slot `slot` seen
+ * through world_to_cam: its 8 voxels at p0 + x * step, as the dense grid's rows (no accumulation).
+ * vol: voxel_size, truncation and max_weight (its origin and dimensions are not used). A slot
+ * without a brick is left alone. */
+VD_INLINE void vd_sparse_integrate_row(int slot, int r, VD_GLOBAL const vd_uint* slot_keys, VD_GLOBAL float* tsdf,
+                                       VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color, VdVolume vol, VdCamera cam,
+                                       VdPose world_to_cam, VD_GLOBAL const float* depth,
+                                       VD_GLOBAL const vd_uint* rgba) {
   vd_uint key = slot_keys[slot];
   if (key == VD_BRICK_EMPTY) return;
   int gx, gy, gz;
-  vd_brick_voxel(key, v, &gx, &gy, &gz);
-  vd_float4 p = VD_F4(vol.voxel_size * (float)gx, vol.voxel_size * (float)gy, vol.voxel_size * (float)gz, 1.0f);
-  vd_tsdf_integrate_point(tsdf, weight, color, slot * VD_BRICK_VOXELS + v, vd_pose_apply(world_to_cam, p), vol, cam,
-                          depth, rgba);
+  vd_brick_voxel(key, r * VD_BRICK, &gx, &gy, &gz);
+  vd_float4 p0 = vd_pose_apply(
+      world_to_cam, VD_F4(vol.voxel_size * (float)gx, vol.voxel_size * (float)gy, vol.voxel_size * (float)gz, 1.0f));
+  vd_float4 step = vd_pose_rotate(world_to_cam, VD_F4(vol.voxel_size, 0.0f, 0.0f, 0.0f));
+  int base = slot * VD_BRICK_VOXELS + r * VD_BRICK;
+  for (int x = 0; x < VD_BRICK; ++x)
+    vd_tsdf_integrate_point(tsdf, weight, color, base + x, p0 + step * (float)x, vol, cam, depth, rgba);
 }
 
 #endif /* VD_SPARSE_TSDF_H */

@@ -59,9 +59,9 @@ void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visibl
                      uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
                      const uint32_t* rgba) {
   for (int32_t slot : visible)
-    for (int v = 0; v < VD_BRICK_VOXELS; ++v)
-      vd_sparse_integrate_voxel(slot, v, table.slot_keys.data(), tsdf, weight, color, vol, cam, world_to_cam, depth,
-                                rgba);
+    for (int r = 0; r < VD_BRICK * VD_BRICK; ++r)
+      vd_sparse_integrate_row(slot, r, table.slot_keys.data(), tsdf, weight, color, vol, cam, world_to_cam, depth,
+                              rgba);
 }
 
 }  // namespace vd::cpu

@@ -120,8 +120,8 @@ Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, V
   if (depth.size() < size_t(cam.width) * cam.height || rgba.size() < size_t(cam.width) * cam.height)
     return InvalidArgument("depth or colour buffer smaller than the camera");
   VD_ASSIGN_OR_RETURN(const BrickCounts counts, table.Counts(ctx));
-  return kSparseIntegrate(ctx, size_t(counts.visible) * VD_BRICK_VOXELS, table.visible(), table.slot_keys(), pool.tsdf,
-                          pool.weight, pool.color, vol, cam, world_to_cam, depth, rgba);
+  return kSparseIntegrate(ctx, size_t(counts.visible) * VD_BRICK * VD_BRICK, table.visible(), table.slot_keys(),
+                          pool.tsdf, pool.weight, pool.color, vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd::ocl

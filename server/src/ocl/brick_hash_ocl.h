@@ -38,7 +38,7 @@ inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose ca
                              Buffer<uint32_t>& stamp, uint32_t frame, Buffer<int32_t>& visible,
                              Buffer<uint32_t>& counters)>
     kBrickList{"vd_brick_table_list"};
-// One item per voxel of the listed bricks.
+// One item per row of 8 voxels of the listed bricks.
 inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf,
                              Buffer<float>& weight, Buffer<uint32_t>& color, VdVolume vol, VdCamera cam,
                              VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
