@@ -221,6 +221,12 @@ TEST(FeatureHistoryTest, MatchesBecomeLinksThatTheAdjustmentCloses) {
   // The first frame and the recent frame stay.
   EXPECT_EQ(h.frame(0).canonical[1].x, 14.f);
   EXPECT_EQ(h.frame(2).canonical[0].x, 11.f);
+  // A link to a non-finite point (a damaged history) is left out, not an error.
+  h.Add(FeaturesAt(3, {VD_F4(std::nanf(""), 11.f, 10.f, 1.f)}), 1, {MatchOf(0, 1, 1)});
+  ASSERT_EQ(h.links().size(), 3u);
+  ASSERT_TRUE(h.Adjust(bp, &stats).ok());
+  EXPECT_EQ(stats.links, 2);
+  EXPECT_NEAR(h.frame(1).canonical[0].x, 14.f, 1e-3f);
   // Off: nothing moves.
   const float before = h.frame(1).canonical[1].x;
   bp.keyframes = 0;
@@ -230,9 +236,10 @@ TEST(FeatureHistoryTest, MatchesBecomeLinksThatTheAdjustmentCloses) {
   FeatureParams p;
   p.recent_frames = 0;
   h.Compact(p);
-  EXPECT_EQ(h.num_frames(), 2u);
-  ASSERT_EQ(h.links().size(), 1u);
+  EXPECT_EQ(h.num_frames(), 3u);
+  ASSERT_EQ(h.links().size(), 2u);
   EXPECT_EQ(h.links()[0].frame_a, 1);
+  EXPECT_EQ(h.links()[1].frame_a, 3);
 }
 
 // Lifting on the bending tube: every stored feature deformed by the field lands on its observed

@@ -799,7 +799,10 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     const std::vector<int>& keyframes = history_.keyframes();
     if (bundle.keyframes > 0 && !keyframes.empty() && history_.frame(keyframes.back()).frame_index == index) {
       t0 = Clock::now();
-      VD_RETURN_IF_ERROR(history_.Adjust(bundle, &result.bundle));
+      // The adjustment only refines the features: a failure leaves them as lifted and the frame
+      // goes on.
+      Status adjusted = history_.Adjust(bundle, &result.bundle);
+      if (!adjusted.ok()) VD_LOG_WARNING << "keyframe bundle adjustment skipped: " << adjusted.ToString();
       result.bundle_ms = MsSince(t0);
       result.times[Stage::kFeatures] += result.bundle_ms;
     }

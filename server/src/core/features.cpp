@@ -393,6 +393,14 @@ Status FeatureHistory::Adjust(const BundleParams& params, BundleStats* stats) {
     auto a = position.find(l.frame_a), b = position.find(l.frame_b);
     if (a == position.end() || b == position.end()) continue;
     if (!free[a->second] && !free[b->second]) continue;
+    // A link to a feature that is not there or not a finite lifted point (a damaged history) is
+    // left out rather than failing the frame.
+    auto usable = [&](int f, int32_t i) {
+      if (i < 0 || size_t(i) >= frames_[f].canonical.size()) return false;
+      const vd_float4& p = frames_[f].canonical[i];
+      return p.w > 0.f && std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+    };
+    if (!usable(a->second, l.feature_a) || !usable(b->second, l.feature_b)) continue;
     // The fixed side's point as it is.
     for (int f : {a->second, b->second})
       if (points[f].empty()) points[f] = frames_[f].canonical;
