@@ -253,11 +253,18 @@ TEST(FeatureEngineTest, LiftedFeaturesDeformBackOntoTheObservationAndMatchesAreC
   const MeshDistance gt0(scene->GroundTruthMesh(0));
   const VdVolume* vol = nullptr;
   double worst_back_mm = 0, sum_canon_mm = 0;
-  int lifted = 0, matches = 0, wrong = 0, very_wrong = 0;
+  int lifted = 0, matches = 0, wrong = 0, very_wrong = 0, adjusted = 0;
   for (int k = 0; k < 24; ++k) {
     auto r = (*engine)->Process(scene->Render(k));
     ASSERT_TRUE(r.ok()) << r.status().ToString();
     ASSERT_TRUE(r->tracking_ok) << k;
+    // The keyframe bundle adjustment runs on each new keyframe after the first, and only ever
+    // brings linked features closer.
+    if (r->bundle.links > 0) {
+      ++adjusted;
+      EXPECT_EQ(k % params.features.keyframe_interval, 0) << k;
+      EXPECT_LE(r->bundle.rms_after, r->bundle.rms_before + 1e-6) << k;
+    }
     vol = &(*engine)->volume();
     std::vector<vd_float4> field;
     ASSERT_TRUE((*engine)->DownloadDeformation(&field).ok());
@@ -305,6 +312,7 @@ TEST(FeatureEngineTest, LiftedFeaturesDeformBackOntoTheObservationAndMatchesAreC
   EXPECT_GT(matches, 23 * 100);
   EXPECT_LT(wrong, matches / 20);
   EXPECT_LT(very_wrong, matches / 200);
+  EXPECT_EQ(adjusted, 4) << "keyframes 5, 10, 15 and 20";
 }
 
 }  // namespace
