@@ -30,9 +30,11 @@ struct NodeKeyHash {
   }
 };
 
-bool Valid(const vd_float4& p) { return p.w > 0.f && std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
-
 }  // namespace
+
+bool IsBundlePoint(const vd_float4& p) {
+  return p.w > 0.f && std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+}
 
 Status BundleParams::Validate() const {
   if (!(keyframes >= 0 && keyframes <= 1024))
@@ -72,7 +74,7 @@ Status SolveBundle(const BundleParams& params, const std::vector<char>& free, co
       if (f < 0 || f >= num_frames || i < 0 || i >= int(pts[f].size()))
         return InvalidArgument("bundle: a link names frame " + std::to_string(f) + " feature " + std::to_string(i) +
                                ", which the problem does not have");
-      if (!Valid(pts[f][i])) return InvalidArgument("bundle: a link names an invalid point");
+      if (!IsBundlePoint(pts[f][i])) return InvalidArgument("bundle: a link names an invalid point");
     }
   }
   // The links that move something.
@@ -119,7 +121,7 @@ Status SolveBundle(const BundleParams& params, const std::vector<char>& free, co
     if (!free[f] || !linked[f]) continue;
     Stencil s;
     for (const vd_float4& p : pts[f])
-      if (Valid(p)) stencil(f, p, true, &s);
+      if (IsBundlePoint(p)) stencil(f, p, true, &s);
   }
   const int n = int(node_keys.size());
   const int m = int(active.size());
@@ -191,7 +193,7 @@ Status SolveBundle(const BundleParams& params, const std::vector<char>& free, co
   for (int f = 0; f < num_frames; ++f) {
     if (!free[f] || nodes[f].empty()) continue;
     for (vd_float4& p : pts[f]) {
-      if (!Valid(p)) continue;
+      if (!IsBundlePoint(p)) continue;
       Stencil s;
       stencil(f, p, false, &s);
       Eigen::RowVector3d d = Eigen::RowVector3d::Zero();

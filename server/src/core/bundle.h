@@ -65,6 +65,9 @@ struct BundleStats {
   double rms_before = 0.0, rms_after = 0.0;
 };
 
+// Whether p is a point the adjustment takes: lifted (w > 0) and finite.
+bool IsBundlePoint(const vd_float4& p);
+
 // Solves the adjustment in place: `points[f]` are frame f's canonical points (grid units, w > 0 for
 // a valid point); those of frames with `free[f]` are corrected. Links naming a frame or feature out
 // of range or an invalid point are an InvalidArgument.

@@ -396,9 +396,7 @@ Status FeatureHistory::Adjust(const BundleParams& params, BundleStats* stats) {
     // A link to a feature that is not there or not a finite lifted point (a damaged history) is
     // left out rather than failing the frame.
     auto usable = [&](int f, int32_t i) {
-      if (i < 0 || size_t(i) >= frames_[f].canonical.size()) return false;
-      const vd_float4& p = frames_[f].canonical[i];
-      return p.w > 0.f && std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+      return i >= 0 && size_t(i) < frames_[f].canonical.size() && IsBundlePoint(frames_[f].canonical[i]);
     };
     if (!usable(a->second, l.feature_a) || !usable(b->second, l.feature_b)) continue;
     // The fixed side's point as it is.
