@@ -1,4 +1,4 @@
-#include "shared/sparse_tsdf.h"
+#include "shared/sparse_mesh.h"
 
 /* The brick table of the sparse volume (shared/brick_hash.h) and fusion into its pool
  * (shared/sparse_tsdf.h). slot_keys: the key of each pool slot's brick (VD_BRICK_EMPTY: none). */
@@ -62,4 +62,13 @@ __kernel void vd_sparse_integrate(__global const int* visible, __global const ui
   if (i >= vd_items) return;
   vd_sparse_integrate_row(visible[i / (VD_BRICK * VD_BRICK)], i % (VD_BRICK * VD_BRICK), slot_keys, tsdf, weight, color,
                           vol, cam, world_to_cam, depth, rgba);
+}
+
+/* One work item per pool slot handed out: the slots of its brick's 27 neighbours
+ * (shared/sparse_mesh.h). */
+__kernel void vd_brick_neighbours(__global const uint* slot_keys, __global const uint* keys, __global const int* slots,
+                                  uint capacity, __global int* nbr, int vd_items) {
+  int s = get_global_id(0);
+  if (s >= vd_items) return;
+  vd_brick_neighbours_of(s, slot_keys, keys, slots, capacity, nbr);
 }

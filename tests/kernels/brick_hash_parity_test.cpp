@@ -11,6 +11,7 @@
 #include <random>
 #include <set>
 
+#include "brick_scene.h"
 #include "cpu_ref/brick_hash_ref.h"
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/brick_hash_ocl.h"
@@ -239,54 +240,30 @@ TEST(BrickHashParityTest, CompactionKeepsTheChosenBricksInSlotOrder) {
 // fusion at the same voxels, with every observed near-surface voxel of the dense grid in a brick.
 TEST(BrickHashParityTest, FusionIntoThePoolMatchesTheCpuAndTheDenseGrid) {
   VD_REQUIRE_OCL(ctx);
-  const VdCamera cam = test::TestCamera(160, 120);
-  const std::vector<float> depth = test::SphereDepth(cam, 0.8f, 0.2f, 1.2f);
-  const std::vector<uint32_t> rgba = test::TestColors(cam);
-  // The camera about 5 cm right, 10 cm up and 20 cm forward of the world origin (not round
-  // numbers: with them whole slices of voxels project exactly onto pixel boundaries).
-  VdPose cam_to_world = test::IdentityPose(), world_to_cam = test::IdentityPose();
-  cam_to_world.r0.w = 0.0513f, cam_to_world.r1.w = -0.1037f, cam_to_world.r2.w = 0.2071f;
-  world_to_cam.r0.w = -0.0513f, world_to_cam.r1.w = 0.1037f, world_to_cam.r2.w = -0.2071f;
-  VdVolume vol{};
-  vol.voxel_size = 0.008f;
-  vol.truncation = 0.032f;
-  vol.max_weight = 64.f;
-  const float brick = VD_BRICK * vol.voxel_size;
-  auto table = ocl::BrickTable::Create(*ctx, 1 << 11);
-  ASSERT_TRUE(table.ok());
-  ocl::Buffer<float> dd = test::ToDevice(ctx, depth);
-  ocl::Buffer<uint32_t> dc = test::ToDevice(ctx, rgba);
-  ASSERT_TRUE(table->AllocateFromDepth(*ctx, dd, cam, cam_to_world, vol.truncation, brick).ok());
-  auto pool = ocl::BrickPool::Create(*ctx, table->pool());
-  ASSERT_TRUE(pool.ok());
-  for (int frame = 0; frame < 2; ++frame) {
-    ASSERT_TRUE(table->ListVisible(*ctx, dd, cam, cam_to_world, vol.truncation, brick).ok());
-    ASSERT_TRUE(ocl::IntegrateBricks(*ctx, *table, *pool, vol, cam, world_to_cam, dd, dc).ok());
-  }
-  auto counts = table->Counts(*ctx);
-  ASSERT_TRUE(counts.ok());
-  const size_t n = size_t(counts->used) * VD_BRICK_VOXELS;
-  ASSERT_GT(counts->used, 100u);
+  test::FusedBricks f;
+  test::FuseSphere(ctx, 2, &f);
+  if (HasFatalFailure()) return;
+  const ocl::BrickCounts& counts = f.counts;
+  const size_t n = size_t(counts.used) * VD_BRICK_VOXELS;
+  ASSERT_GT(counts.used, 100u);
   // The frame lists every brick it allocated, each once (the second frame's list too).
-  EXPECT_EQ(counts->visible, counts->used);
-  std::vector<int32_t> listed = test::FromDevice(ctx, table->visible(), counts->visible);
+  EXPECT_EQ(counts.visible, counts.used);
+  std::vector<int32_t> listed = test::FromDevice(ctx, f.table->visible(), counts.visible);
   std::sort(listed.begin(), listed.end());
-  const std::vector<float> tsdf = test::FromDevice(ctx, pool->tsdf, n), weight = test::FromDevice(ctx, pool->weight, n);
-  const std::vector<uint32_t> color = test::FromDevice(ctx, pool->color, n);
+  const std::vector<float> tsdf = test::FromDevice(ctx, f.pool->tsdf, n),
+                           weight = test::FromDevice(ctx, f.pool->weight, n);
+  const std::vector<uint32_t> color = test::FromDevice(ctx, f.pool->color, n);
 
-  cpu::BrickTable ref(table->capacity(), table->pool());
-  ref.keys = test::FromDevice(ctx, table->keys(), table->capacity());
-  ref.slots = test::FromDevice(ctx, table->slots(), table->capacity());
-  ref.slot_keys = test::FromDevice(ctx, table->slot_keys(), table->pool());
-  ref.counters[VD_BRICK_COUNT_TAKEN] = counts->used;
-  std::vector<int32_t> ref_listed = cpu::BrickListVisible(depth.data(), cam, cam_to_world, vol.truncation, brick, ref);
+  const cpu::BrickTable ref = f.Reference(ctx);
+  std::vector<int32_t> ref_listed =
+      cpu::BrickListVisible(f.depth.data(), f.cam, f.cam_to_world, f.vol.truncation, f.brick, ref);
   std::sort(ref_listed.begin(), ref_listed.end());
   EXPECT_EQ(listed, ref_listed);
   std::vector<float> rt(n, 1.f), rw(n, 0.f);
   std::vector<uint32_t> rc(n, 0u);
   for (int frame = 0; frame < 2; ++frame)
-    cpu::SparseIntegrate(ref, ref_listed, rt.data(), rw.data(), rc.data(), vol, cam, world_to_cam, depth.data(),
-                         rgba.data());
+    cpu::SparseIntegrate(ref, ref_listed, rt.data(), rw.data(), rc.data(), f.vol, f.cam, f.world_to_cam, f.depth.data(),
+                         f.rgba.data());
   EXPECT_EQ(weight, rw);
   EXPECT_TRUE(test::AllClose(tsdf, rt, 1e-6f, 0.f));
   EXPECT_EQ(color, rc);
@@ -294,23 +271,17 @@ TEST(BrickHashParityTest, FusionIntoThePoolMatchesTheCpuAndTheDenseGrid) {
   for (float w : weight) fused += w > 0.f;
   EXPECT_GT(fused, n / 8);
 
-  // The dense grid over the bricks' bounding box, its origin on the same global voxel lattice.
-  int lo[3] = {1 << 30, 1 << 30, 1 << 30}, hi[3] = {-(1 << 30), -(1 << 30), -(1 << 30)};
+  // The dense grid over the bricks' bounding box, on the same global voxel lattice.
   std::map<std::array<int, 3>, size_t> pool_index;
   for (size_t i = 0; i < n; ++i) {
     int g[3];
     vd_brick_voxel(ref.slot_keys[i / VD_BRICK_VOXELS], int(i % VD_BRICK_VOXELS), &g[0], &g[1], &g[2]);
     pool_index[{g[0], g[1], g[2]}] = i;
-    for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], g[a]), hi[a] = std::max(hi[a], g[a]);
   }
-  VdVolume dense = vol;
-  dense.origin = VD_F4(lo[0] * vol.voxel_size, lo[1] * vol.voxel_size, lo[2] * vol.voxel_size, 1.f);
-  dense.dim_x = hi[0] - lo[0] + 1, dense.dim_y = hi[1] - lo[1] + 1, dense.dim_z = hi[2] - lo[2] + 1;
-  const size_t nd = size_t(dense.dim_x) * dense.dim_y * dense.dim_z;
-  std::vector<float> dt(nd, 1.f), dw(nd, 0.f);
-  std::vector<uint32_t> dcol(nd, 0u);
-  for (int frame = 0; frame < 2; ++frame)
-    cpu::IntegrateTsdf(dt.data(), dw.data(), dcol.data(), dense, cam, world_to_cam, depth.data(), rgba.data());
+  std::vector<float> dt, dw;
+  std::vector<uint32_t> dcol;
+  int lo[3];
+  const VdVolume dense = f.DenseOver(ref, 0, &dt, &dw, &dcol, lo);
   size_t near = 0, outside = 0, differ = 0;
   for (int z = 0; z < dense.dim_z; ++z)
     for (int y = 0; y < dense.dim_y; ++y)

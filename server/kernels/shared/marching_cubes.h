@@ -15,16 +15,46 @@
 /* Cell codes: bit 8 = valid, bits 0..7 = cube index. */
 #define VD_MC_VALID 0x100u
 
+/* Cube index and validity from the distances d and weights w of a cell's 8 corners (corner i as
+ * above): the one rule the dense grid and the brick pool (shared/sparse_mesh.h) share. */
+VD_INLINE vd_uint vd_mc_code_from(const float* d, const float* w) {
+  vd_uint code = 0u;
+  for (int i = 0; i < 8; ++i) {
+    if (!(w[i] > 0.0f)) return 0u;
+    if (d[i] < 0.0f) code |= 1u << i;
+  }
+  return code | VD_MC_VALID;
+}
+
 VD_INLINE vd_uint vd_mc_cell_code(VD_GLOBAL const float* tsdf, VD_GLOBAL const float* weight, VdVolume vol, int x,
                                   int y, int z) {
   if (x >= vol.dim_x - 1 || y >= vol.dim_y - 1 || z >= vol.dim_z - 1) return 0u;
-  vd_uint code = 0u;
+  float d[8], w[8];
   for (int i = 0; i < 8; ++i) {
     int idx = vd_grid_index(vol, x + (i & 1), y + ((i >> 1) & 1), z + ((i >> 2) & 1));
-    if (!(weight[idx] > 0.0f)) return 0u;
-    if (tsdf[idx] < 0.0f) code |= 1u << i;
+    d[i] = tsdf[idx];
+    w[i] = weight[idx];
   }
-  return code | VD_MC_VALID;
+  return vd_mc_code_from(d, w);
+}
+
+/* Offsets from a grid point of the k-th (0..3) of the four cells sharing its edge along axis a:
+ * -1 or 0 along each of the two other axes. */
+VD_INLINE void vd_mc_edge_cell(int a, int k, int* ox, int* oy, int* oz) {
+  int o0 = -(k & 1), o1 = -((k >> 1) & 1);
+  *ox = a == 0 ? 0 : o0;
+  *oy = a == 1 ? 0 : (a == 0 ? o0 : o1);
+  *oz = a == 2 ? 0 : o1;
+}
+
+/* The axis of cube edge e, and the offsets from the cell's first corner of the grid point owning it. */
+VD_INLINE int vd_mc_edge_owner(int e, int* ox, int* oy, int* oz) {
+  int axis = e >> 2;
+  int b0 = e & 1, b1 = (e >> 1) & 1;
+  *ox = axis == 0 ? 0 : b0;
+  *oy = axis == 1 ? 0 : (axis == 0 ? b0 : b1);
+  *oz = axis == 2 ? 0 : b1;
+  return axis;
 }
 
 /* Cell code of a neighbouring cell, 0 outside the grid. */
@@ -58,14 +88,11 @@ VD_INLINE vd_uint vd_mc_vertex_mask(VD_GLOBAL const float* tsdf, VD_GLOBAL const
     if (nx >= vol.dim_x || ny >= vol.dim_y || nz >= vol.dim_z) continue;
     float d1 = tsdf[vd_grid_index(vol, nx, ny, nz)];
     if ((d0 < 0.0f) == (d1 < 0.0f)) continue;
-    /* The four cells around the edge: offsets -1/0 along the two other axes. */
     vd_uint any_valid = 0u;
     for (int k = 0; k < 4; ++k) {
-      int o0 = -(k & 1), o1 = -((k >> 1) & 1);
-      int cx = x + (a == 0 ? 0 : o0);
-      int cy = y + (a == 1 ? 0 : (a == 0 ? o0 : o1));
-      int cz = z + (a == 2 ? 0 : o1);
-      any_valid |= vd_mc_code_at(codes, vol, cx, cy, cz) & VD_MC_VALID;
+      int ox, oy, oz;
+      vd_mc_edge_cell(a, k, &ox, &oy, &oz);
+      any_valid |= vd_mc_code_at(codes, vol, x + ox, y + oy, z + oz) & VD_MC_VALID;
     }
     if (any_valid) mask |= 1u << a;
   }
@@ -84,22 +111,18 @@ VD_INLINE vd_float4 vd_tsdf_gradient(VD_GLOBAL const float* tsdf, VdVolume vol, 
                (tsdf[vd_grid_index(vol, x, y, zp)] - tsdf[vd_grid_index(vol, x, y, zm)]) / (float)(zp - zm), 0.0f);
 }
 
-/* Writes the vertex on edge `axis` of grid point (x, y, z): position in grid units (x + t, ...),
- * so a vertex knows its cell and trilinear weights; outward normal; colour. */
-VD_INLINE void vd_mc_make_vertex(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_uint* color, VdVolume vol, int x,
-                                 int y, int z, int axis, vd_float4* pos_grid, vd_float4* normal, vd_uint* rgba) {
-  int nx = x + (axis == 0), ny = y + (axis == 1), nz = z + (axis == 2);
-  int i0 = vd_grid_index(vol, x, y, z), i1 = vd_grid_index(vol, nx, ny, nz);
-  float d0 = tsdf[i0], d1 = tsdf[i1];
+/* The vertex on the edge along `axis` from grid point (x, y, z) (distance d0, TSDF gradient g0,
+ * colour c0) to its next point (d1, g1, c1): position in grid units (x + t, ...), so a vertex
+ * knows its cell and trilinear weights; outward normal; colour. */
+VD_INLINE void vd_mc_vertex_from(float d0, float d1, vd_float4 g0, vd_float4 g1, vd_uint c0_packed, vd_uint c1_packed,
+                                 int x, int y, int z, int axis, vd_float4* pos_grid, vd_float4* normal, vd_uint* rgba) {
   float t = d0 / (d0 - d1);
   t = vd_clampf(t, 0.0f, 1.0f);
   *pos_grid = VD_F4((float)x + (axis == 0 ? t : 0.0f), (float)y + (axis == 1 ? t : 0.0f),
                     (float)z + (axis == 2 ? t : 0.0f), 1.0f);
-  vd_float4 g0 = vd_tsdf_gradient(tsdf, vol, x, y, z);
-  vd_float4 g1 = vd_tsdf_gradient(tsdf, vol, nx, ny, nz);
   *normal = vd_normalize3(g0 * (1.0f - t) + g1 * t);
-  vd_float4 c0 = vd_unpack_rgba(color[i0]);
-  vd_float4 c1 = vd_unpack_rgba(color[i1]);
+  vd_float4 c0 = vd_unpack_rgba(c0_packed);
+  vd_float4 c1 = vd_unpack_rgba(c1_packed);
   /* A corner never coloured contributes nothing; if neither is, the vertex is mid grey. */
   float w0 = c0.w > 0.0f ? (1.0f - t) : 0.0f;
   float w1 = c1.w > 0.0f ? t : 0.0f;
@@ -107,14 +130,20 @@ VD_INLINE void vd_mc_make_vertex(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd
   *rgba = vd_pack_rgba(c.x, c.y, c.z, 255.0f);
 }
 
+/* Writes the vertex on edge `axis` of grid point (x, y, z) (vd_mc_vertex_from). */
+VD_INLINE void vd_mc_make_vertex(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_uint* color, VdVolume vol, int x,
+                                 int y, int z, int axis, vd_float4* pos_grid, vd_float4* normal, vd_uint* rgba) {
+  int nx = x + (axis == 0), ny = y + (axis == 1), nz = z + (axis == 2);
+  int i0 = vd_grid_index(vol, x, y, z), i1 = vd_grid_index(vol, nx, ny, nz);
+  vd_mc_vertex_from(tsdf[i0], tsdf[i1], vd_tsdf_gradient(tsdf, vol, x, y, z), vd_tsdf_gradient(tsdf, vol, nx, ny, nz),
+                    color[i0], color[i1], x, y, z, axis, pos_grid, normal, rgba);
+}
+
 /* Index of the welded vertex on cube edge e of cell (x, y, z). */
 VD_INLINE int vd_mc_edge_vertex(VD_GLOBAL const vd_uchar* masks, VD_GLOBAL const vd_uint* vert_offset, VdVolume vol,
                                 int x, int y, int z, int e) {
-  int axis = e >> 2;
-  int b0 = e & 1, b1 = (e >> 1) & 1;
-  int ox = axis == 0 ? 0 : b0;
-  int oy = axis == 1 ? 0 : (axis == 0 ? b0 : b1);
-  int oz = axis == 2 ? 0 : b1;
+  int ox, oy, oz;
+  int axis = vd_mc_edge_owner(e, &ox, &oy, &oz);
   int owner = vd_grid_index(vol, x + ox, y + oy, z + oz);
   vd_uint below = (vd_uint)masks[owner] & ((1u << axis) - 1u);
   return (int)vert_offset[owner] + vd_popcount3(below);

@@ -1,6 +1,9 @@
 #include "cpu_ref/brick_hash_ref.h"
 
 #include <algorithm>
+#include <numeric>
+
+#include "ocl/mc_table.h"
 
 namespace vd::cpu {
 
@@ -62,6 +65,80 @@ void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visibl
     for (int r = 0; r < VD_BRICK * VD_BRICK; ++r)
       vd_sparse_integrate_row(slot, r, table.slot_keys.data(), tsdf, weight, color, vol, cam, world_to_cam, depth,
                               rgba);
+}
+
+std::vector<int32_t> BrickNeighbours(const BrickTable& t, uint32_t used) {
+  std::vector<int32_t> nbr(size_t(VD_BRICK_NEIGHBOURS) * t.pool, 0);
+  for (uint32_t s = 0; s < used; ++s)
+    vd_brick_neighbours_of(int(s), t.slot_keys.data(), t.keys.data(), t.slots.data(), t.capacity, nbr.data());
+  return nbr;
+}
+
+McMesh SparseMarchingCubes(const BrickTable& t, uint32_t used, const float* tsdf, const float* weight,
+                           const uint32_t* color) {
+  const McTable& table = GetMcTable();
+  const std::vector<int32_t> nbr = BrickNeighbours(t, used);
+  const size_t n = size_t(used) * VD_BRICK_VOXELS;
+  std::vector<uint16_t> codes(n, 0);
+  std::vector<uint8_t> masks(n, 0);
+  std::vector<uint32_t> vert_count(n, 0), tri_count(n, 0);
+  // Local coordinates of pool voxel i.
+  auto local = [](size_t i, int* x, int* y, int* z) {
+    const int v = int(i % VD_BRICK_VOXELS);
+    *x = v % VD_BRICK, *y = (v / VD_BRICK) % VD_BRICK, *z = v / VD_BRICK_ROWS;
+  };
+  auto present = [&](int slot) { return nbr[VD_BRICK_NEIGHBOURS * size_t(slot) + VD_BRICK_SELF] >= 0; };
+  for (size_t i = 0; i < n; ++i) {
+    const int slot = int(i / VD_BRICK_VOXELS);
+    if (!present(slot)) continue;
+    int x, y, z;
+    local(i, &x, &y, &z);
+    codes[i] = uint16_t(vd_sparse_cell_code(tsdf, weight, nbr.data(), slot, x, y, z));
+    tri_count[i] = (codes[i] & VD_MC_VALID) ? table.counts[codes[i] & 255] : 0;
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const int slot = int(i / VD_BRICK_VOXELS);
+    if (!present(slot)) continue;
+    int x, y, z;
+    local(i, &x, &y, &z);
+    masks[i] = uint8_t(vd_sparse_vertex_mask(tsdf, codes.data(), nbr.data(), slot, x, y, z));
+    vert_count[i] = uint32_t(vd_popcount3(masks[i]));
+  }
+  std::vector<uint32_t> vert_offset(n), tri_offset(n);
+  std::exclusive_scan(vert_count.begin(), vert_count.end(), vert_offset.begin(), 0u);
+  std::exclusive_scan(tri_count.begin(), tri_count.end(), tri_offset.begin(), 0u);
+  const uint32_t nv = n ? vert_offset[n - 1] + vert_count[n - 1] : 0;
+  const uint32_t nt = n ? tri_offset[n - 1] + tri_count[n - 1] : 0;
+  McMesh mesh;
+  mesh.positions_grid.resize(nv);
+  mesh.normals.resize(nv);
+  mesh.colors.resize(nv);
+  mesh.triangles.resize(3 * size_t(nt));
+  for (size_t i = 0; i < n; ++i) {
+    if (!masks[i]) continue;
+    const int slot = int(i / VD_BRICK_VOXELS);
+    int x, y, z;
+    local(i, &x, &y, &z);
+    uint32_t out = vert_offset[i];
+    for (int a = 0; a < 3; ++a) {
+      if (!(masks[i] & (1u << a))) continue;
+      vd_sparse_make_vertex(tsdf, color, nbr.data(), slot, t.slot_keys[slot], x, y, z, a, &mesh.positions_grid[out],
+                            &mesh.normals[out], &mesh.colors[out]);
+      ++out;
+    }
+  }
+  for (size_t i = 0; i < n; ++i) {
+    if (!(codes[i] & VD_MC_VALID)) continue;
+    const int slot = int(i / VD_BRICK_VOXELS);
+    int x, y, z;
+    local(i, &x, &y, &z);
+    const int8_t* row = &table.triangles[16 * (codes[i] & 255)];
+    for (int k = 0; row[k] >= 0; ++k)
+      mesh.triangles[3 * size_t(tri_offset[i]) + k] =
+          vd_sparse_edge_vertex(masks.data(), vert_offset.data(), nbr.data(), slot, x, y, z, row[k]);
+  }
+  mesh.codes = std::move(codes);
+  return mesh;
 }
 
 }  // namespace vd::cpu

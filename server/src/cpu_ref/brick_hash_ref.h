@@ -4,7 +4,8 @@
 #include <cstdint>
 #include <vector>
 
-#include "shared/sparse_tsdf.h"
+#include "cpu_ref/cpu_ref.h"
+#include "shared/sparse_mesh.h"
 
 namespace vd::cpu {
 
@@ -32,5 +33,13 @@ std::vector<int32_t> BrickListVisible(const float* depth, VdCamera cam, VdPose c
 void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visible, float* tsdf, float* weight,
                      uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
                      const uint32_t* rgba);
+
+// The 27 neighbour slots of each of the first `used` slots (VD_BRICK_NEIGHBOURS per slot).
+std::vector<int32_t> BrickNeighbours(const BrickTable& table, uint32_t used);
+// Marching cubes over the first `used` slots of a pool (shared/sparse_mesh.h), in the device's
+// order (slot, then row, then x), with the standard library's scan: positions_grid in global grid
+// coordinates; codes one per pool voxel.
+McMesh SparseMarchingCubes(const BrickTable& table, uint32_t used, const float* tsdf, const float* weight,
+                           const uint32_t* color);
 
 }  // namespace vd::cpu

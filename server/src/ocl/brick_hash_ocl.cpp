@@ -19,6 +19,7 @@ StatusOr<BrickTable> BrickTable::Create(Context& ctx, uint32_t pool) {
   VD_ASSIGN_OR_RETURN(t.stamp_, ctx.Alloc<uint32_t>(pool));
   VD_ASSIGN_OR_RETURN(t.visible_, ctx.Alloc<int32_t>(pool));
   VD_ASSIGN_OR_RETURN(t.counters_, ctx.Alloc<uint32_t>(VD_BRICK_COUNTERS));
+  VD_ASSIGN_OR_RETURN(t.neighbours_, ctx.Alloc<int32_t>(size_t(VD_BRICK_NEIGHBOURS) * pool));
   VD_RETURN_IF_ERROR(t.Clear(ctx));
   return t;
 }
@@ -98,6 +99,12 @@ StatusOr<BrickCounts> BrickTable::Counts(Context& ctx) const {
   out.failed = c[VD_BRICK_COUNT_FAILED];
   out.visible = c[VD_BRICK_COUNT_VISIBLE];
   return out;
+}
+
+Status BrickTable::BuildNeighbours(Context& ctx, uint32_t used) {
+  if (used > pool_) return InvalidArgument("more slots in use than the pool holds");
+  if (used == 0) return Status::Ok();
+  return kBrickNeighbours(ctx, used, slot_keys_, keys_, slots_, capacity_, neighbours_);
 }
 
 StatusOr<BrickPool> BrickPool::Create(Context& ctx, uint32_t slots) {

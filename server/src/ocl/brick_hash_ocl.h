@@ -5,7 +5,7 @@
 #include <cstdint>
 
 #include "ocl/kernel.h"
-#include "shared/sparse_tsdf.h"
+#include "shared/sparse_mesh.h"
 
 namespace vd {
 class DeviceOps;
@@ -43,6 +43,11 @@ inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32
                              Buffer<float>& weight, Buffer<uint32_t>& color, VdVolume vol, VdCamera cam,
                              VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
     kSparseIntegrate{"vd_sparse_integrate"};
+
+// One item per pool slot handed out.
+inline constexpr Kernel<void(const Buffer<uint32_t>& slot_keys, const Buffer<uint32_t>& keys,
+                             const Buffer<int32_t>& slots, uint32_t capacity, Buffer<int32_t>& nbr)>
+    kBrickNeighbours{"vd_brick_neighbours"};
 
 // What the inserting kernels counted since the table was cleared.
 struct BrickCounts {
@@ -86,6 +91,10 @@ class BrickTable {
   // 0..kept-1 in the order of their old slots (the pool's data moves by the same map).
   Status Compact(DeviceOps& ops, const Buffer<uint32_t>& keep);
   StatusOr<BrickCounts> Counts(Context& ctx) const;
+  // The slots of the 27 bricks around each of the first `used` slots' bricks (shared/sparse_mesh.h:
+  // VD_BRICK_NEIGHBOURS per slot, -1 where none), for the passes that read across brick faces.
+  Status BuildNeighbours(Context& ctx, uint32_t used);
+  const Buffer<int32_t>& neighbours() const { return neighbours_; }
 
  private:
   uint32_t capacity_ = 0, pool_ = 0;
@@ -93,6 +102,8 @@ class BrickTable {
   uint32_t frame_ = 0;
   Buffer<uint32_t> keys_, slot_keys_, counters_, stamp_;
   Buffer<int32_t> slots_, visible_;
+  // VD_BRICK_NEIGHBOURS slots per pool slot (BuildNeighbours).
+  Buffer<int32_t> neighbours_;
   // Compaction scratch: the prefix sum of keep, and the new table.
   Buffer<uint32_t> offsets_, new_keys_, new_slot_keys_;
   Buffer<int32_t> new_slots_;

@@ -12,6 +12,10 @@
 #include "shared/vd_types.h"
 
 namespace vd {
+namespace ocl {
+class BrickTable;
+struct BrickPool;
+}  // namespace ocl
 
 // The unified grid (VolumeDeform section 4), structure of arrays. Bytes per grid point: 4 (D_i) +
 // 4 (W_i) + 4 (C_i, RGBA8 with A = colour weight) = 12 for the geometry, + 16 (t_i, w = optimisation
@@ -96,6 +100,10 @@ class DeviceOps {
   Status ScanExclusive(const ocl::Buffer<uint32_t>& in, size_t n, ocl::Buffer<uint32_t>& out, uint32_t* total);
   // Marching cubes; fills positions_grid, normals, colors, triangles (positions untouched).
   Status MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh);
+  // Marching cubes over every brick of a sparse volume (shared/sparse_mesh.h; builds the table's
+  // neighbours): positions_grid in global grid coordinates (the bricks tile space from the world
+  // origin), normals, colors, triangles.
+  Status MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& pool, DeviceMesh* mesh);
   // positions = origin + voxel_size * positions_grid (the rigid placement).
   Status GridToWorld(const VdVolume& vol, DeviceMesh* mesh);
   // positions = S(positions_grid) through the grid's deformation field.

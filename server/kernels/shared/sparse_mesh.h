@@ -1,0 +1,131 @@
+/* Marching cubes over the brick pool of the sparse volume (issue 17; docs/SPARSE_VOLUME.md), with
+ * the dense grid's rules (shared/marching_cubes.h): cell codes, welded vertices owned by the grid
+ * point their edge leaves along +x, +y, +z, and the same vertex and normal math.
+ *  - Neighbours: each pool slot keeps the slots of the 27 bricks around its own (itself at 13,
+ *    -1 where none is allocated), built once per meshing from the table
+ *    (vd_brick_neighbours_of), so the per-voxel passes read arrays instead of probing the hash.
+ *  - A voxel of a brick that is not allocated reads as the dense grid's unobserved voxel: distance
+ *    1 (at rest), weight 0, no colour. A cell with such a corner is therefore invalid, as a dense
+ *    cell with an unobserved corner is, and the mesh over a pool equals the dense grid's over the
+ *    same lattice wherever that grid's box holds the bricks with a voxel to spare (one-sided
+ *    gradients at a dense grid's faces are the one difference).
+ *  - Work items: one per row of 8 cells of a slot (slot * 64 + y + 8 z), as fusion's; positions are
+ *    global grid coordinates (the bricks tile space from the world origin). */
+#ifndef VD_SPARSE_MESH_H
+#define VD_SPARSE_MESH_H
+
+#include "marching_cubes.h"
+#include "sparse_tsdf.h"
+
+#define VD_BRICK_NEIGHBOURS 27
+/* The brick itself among its neighbours. */
+#define VD_BRICK_SELF 13
+#define VD_BRICK_ROWS (VD_BRICK * VD_BRICK)
+
+/* Index among the 27 of the brick at offset (dx, dy, dz), each -1..1. */
+VD_INLINE int vd_brick_neighbour_index(int dx, int dy, int dz) { return (dx + 1) + 3 * (dy + 1) + 9 * (dz + 1); }
+
+/* Writes the slots of the 27 bricks around the brick in `slot` (all -1 for a slot without one). */
+VD_INLINE void vd_brick_neighbours_of(int slot, VD_GLOBAL const vd_uint* slot_keys, VD_GLOBAL const vd_uint* keys,
+                                      VD_GLOBAL const int* slots, vd_uint capacity, VD_GLOBAL int* nbr) {
+  vd_uint key = slot_keys[slot];
+  int bx = 0, by = 0, bz = 0;
+  if (key != VD_BRICK_EMPTY) vd_brick_unpack(key, &bx, &by, &bz);
+  for (int n = 0; n < VD_BRICK_NEIGHBOURS; ++n) {
+    int x = bx + n % 3 - 1, y = by + (n / 3) % 3 - 1, z = bz + n / 9 - 1;
+    int s = -1;
+    if (key != VD_BRICK_EMPTY && vd_brick_coords_valid(x, y, z))
+      s = n == VD_BRICK_SELF ? slot : vd_brick_find(keys, slots, capacity, vd_brick_pack(x, y, z));
+    nbr[VD_BRICK_NEIGHBOURS * slot + n] = s;
+  }
+}
+
+/* Brick offset (-1, 0, 1) of a local coordinate -8..15 of a brick. */
+VD_INLINE int vd_brick_step(int c) { return c < 0 ? -1 : (c >= VD_BRICK ? 1 : 0); }
+
+/* Pool index of the voxel at local coordinates (x, y, z) of the brick in `slot`, each -8..15 (so
+ * in that brick or one of its 26 neighbours), or -1 when its brick is not allocated. */
+VD_INLINE int vd_brick_voxel_at(VD_GLOBAL const int* nbr, int slot, int x, int y, int z) {
+  int dx = vd_brick_step(x), dy = vd_brick_step(y), dz = vd_brick_step(z);
+  int s = nbr[VD_BRICK_NEIGHBOURS * slot + vd_brick_neighbour_index(dx, dy, dz)];
+  if (s < 0) return -1;
+  return s * VD_BRICK_VOXELS + (x - VD_BRICK * dx) + VD_BRICK * (y - VD_BRICK * dy) +
+         VD_BRICK_ROWS * (z - VD_BRICK * dz);
+}
+
+/* The distance at a pool index, 1 (unobserved, at rest) for -1. */
+VD_INLINE float vd_pool_tsdf(VD_GLOBAL const float* tsdf, int i) { return i < 0 ? 1.0f : tsdf[i]; }
+
+/* Cell code of local cell (x, y, z) of `slot` (coordinates -1..7). */
+VD_INLINE vd_uint vd_sparse_cell_code(VD_GLOBAL const float* tsdf, VD_GLOBAL const float* weight,
+                                      VD_GLOBAL const int* nbr, int slot, int x, int y, int z) {
+  float d[8], w[8];
+  for (int i = 0; i < 8; ++i) {
+    int idx = vd_brick_voxel_at(nbr, slot, x + (i & 1), y + ((i >> 1) & 1), z + ((i >> 2) & 1));
+    d[i] = vd_pool_tsdf(tsdf, idx);
+    w[i] = idx < 0 ? 0.0f : weight[idx];
+  }
+  return vd_mc_code_from(d, w);
+}
+
+/* Vertex mask (bit a: a vertex on the edge along +a) of local point (x, y, z) of `slot`, from the
+ * cell codes of every allocated brick (codes: one per pool voxel). */
+VD_INLINE vd_uint vd_sparse_vertex_mask(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_ushort* codes,
+                                        VD_GLOBAL const int* nbr, int slot, int x, int y, int z) {
+  float d0 = tsdf[vd_brick_voxel_at(nbr, slot, x, y, z)];
+  vd_uint mask = 0u;
+  for (int a = 0; a < 3; ++a) {
+    float d1 = vd_pool_tsdf(tsdf, vd_brick_voxel_at(nbr, slot, x + (a == 0), y + (a == 1), z + (a == 2)));
+    if ((d0 < 0.0f) == (d1 < 0.0f)) continue;
+    vd_uint any_valid = 0u;
+    for (int k = 0; k < 4; ++k) {
+      int ox, oy, oz;
+      vd_mc_edge_cell(a, k, &ox, &oy, &oz);
+      int c = vd_brick_voxel_at(nbr, slot, x + ox, y + oy, z + oz);
+      if (c >= 0) any_valid |= (vd_uint)codes[c] & VD_MC_VALID;
+    }
+    if (any_valid) mask |= 1u << a;
+  }
+  return mask;
+}
+
+/* Central-difference gradient of the distance at local point (x, y, z) of `slot`. */
+VD_INLINE vd_float4 vd_sparse_gradient(VD_GLOBAL const float* tsdf, VD_GLOBAL const int* nbr, int slot, int x, int y,
+                                       int z) {
+  return VD_F4((vd_pool_tsdf(tsdf, vd_brick_voxel_at(nbr, slot, x + 1, y, z)) -
+                vd_pool_tsdf(tsdf, vd_brick_voxel_at(nbr, slot, x - 1, y, z))) *
+                   0.5f,
+               (vd_pool_tsdf(tsdf, vd_brick_voxel_at(nbr, slot, x, y + 1, z)) -
+                vd_pool_tsdf(tsdf, vd_brick_voxel_at(nbr, slot, x, y - 1, z))) *
+                   0.5f,
+               (vd_pool_tsdf(tsdf, vd_brick_voxel_at(nbr, slot, x, y, z + 1)) -
+                vd_pool_tsdf(tsdf, vd_brick_voxel_at(nbr, slot, x, y, z - 1))) *
+                   0.5f,
+               0.0f);
+}
+
+/* The vertex on the edge along `axis` of local point (x, y, z) of `slot`, whose brick's key is
+ * `key`: position in global grid coordinates, normal and colour (vd_mc_vertex_from). */
+VD_INLINE void vd_sparse_make_vertex(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_uint* color,
+                                     VD_GLOBAL const int* nbr, int slot, vd_uint key, int x, int y, int z, int axis,
+                                     vd_float4* pos_grid, vd_float4* normal, vd_uint* rgba) {
+  int nx = x + (axis == 0), ny = y + (axis == 1), nz = z + (axis == 2);
+  int i0 = vd_brick_voxel_at(nbr, slot, x, y, z), i1 = vd_brick_voxel_at(nbr, slot, nx, ny, nz);
+  int gx, gy, gz;
+  vd_brick_voxel(key, x + VD_BRICK * (y + VD_BRICK * z), &gx, &gy, &gz);
+  vd_mc_vertex_from(tsdf[i0], vd_pool_tsdf(tsdf, i1), vd_sparse_gradient(tsdf, nbr, slot, x, y, z),
+                    vd_sparse_gradient(tsdf, nbr, slot, nx, ny, nz), color[i0], i1 < 0 ? 0u : color[i1], gx, gy, gz,
+                    axis, pos_grid, normal, rgba);
+}
+
+/* Index of the welded vertex on cube edge e of local cell (x, y, z) of `slot`. */
+VD_INLINE int vd_sparse_edge_vertex(VD_GLOBAL const vd_uchar* masks, VD_GLOBAL const vd_uint* vert_offset,
+                                    VD_GLOBAL const int* nbr, int slot, int x, int y, int z, int e) {
+  int ox, oy, oz;
+  int axis = vd_mc_edge_owner(e, &ox, &oy, &oz);
+  int owner = vd_brick_voxel_at(nbr, slot, x + ox, y + oy, z + oz);
+  vd_uint below = (vd_uint)masks[owner] & ((1u << axis) - 1u);
+  return (int)vert_offset[owner] + vd_popcount3(below);
+}
+
+#endif /* VD_SPARSE_MESH_H */

@@ -1,0 +1,88 @@
+#include "shared/sparse_mesh.h"
+
+/* Marching cubes over the brick pool (shared/sparse_mesh.h): one work item per row of 8 cells of
+ * a slot (slot * 64 + y + 8 z), the dense passes' order within a row; a slot without a brick
+ * writes nothing but zero totals. */
+
+__kernel void vd_sparse_mc_classify(__global const float* tsdf, __global const float* weight, __global const int* nbr,
+                                    __global const uchar* tri_counts, __global ushort* codes, __global uint* row_tris,
+                                    int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
+  uint total = 0u;
+  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
+  int present = nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0;
+  for (int x = 0; x < VD_BRICK; ++x) {
+    uint code = present ? vd_sparse_cell_code(tsdf, weight, nbr, slot, x, y, z) : 0u;
+    codes[base + x] = (ushort)code;
+    total += (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
+  }
+  row_tris[i] = total;
+}
+
+__kernel void vd_sparse_mc_masks(__global const float* tsdf, __global const ushort* codes, __global const int* nbr,
+                                 __global uchar* masks, __global uint* row_verts, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
+  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
+  int present = nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0;
+  uint total = 0u;
+  for (int x = 0; x < VD_BRICK; ++x) {
+    uint m = present ? vd_sparse_vertex_mask(tsdf, codes, nbr, slot, x, y, z) : 0u;
+    masks[base + x] = (uchar)m;
+    total += (uint)vd_popcount3(m);
+  }
+  row_verts[i] = total;
+}
+
+/* Also records each vertex-owning point's first vertex index for the triangle pass. */
+__kernel void vd_sparse_mc_vertices(__global const float* tsdf, __global const uint* color, __global const int* nbr,
+                                    __global const uint* slot_keys, __global const uchar* masks,
+                                    __global const uint* row_verts, __global const uint* row_vert_offset,
+                                    __global uint* vert_offset, __global float4* positions, __global float4* normals,
+                                    __global uint* colors, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items || row_verts[i] == 0u) return;
+  int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
+  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
+  uint key = slot_keys[slot];
+  uint out = row_vert_offset[i];
+  for (int x = 0; x < VD_BRICK; ++x) {
+    uint m = masks[base + x];
+    if (m == 0u) continue;
+    vert_offset[base + x] = out;
+    for (int a = 0; a < 3; ++a) {
+      if (!(m & (1u << a))) continue;
+      float4 p, n;
+      uint c;
+      vd_sparse_make_vertex(tsdf, color, nbr, slot, key, x, y, z, a, &p, &n, &c);
+      positions[out] = p;
+      normals[out] = n;
+      colors[out] = c;
+      ++out;
+    }
+  }
+}
+
+__kernel void vd_sparse_mc_triangles(__global const ushort* codes, __global const uint* row_tris,
+                                     __global const uint* row_tri_offset, __global const char* tri_table,
+                                     __global const uchar* masks, __global const uint* vert_offset,
+                                     __global const int* nbr, __global int* tris, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items || row_tris[i] == 0u) return;
+  int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
+  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
+  uint out = row_tri_offset[i];
+  for (int x = 0; x < VD_BRICK; ++x) {
+    uint code = codes[base + x];
+    if (!(code & VD_MC_VALID)) continue;
+    __global const char* row = tri_table + 16 * (code & 255u);
+    for (int k = 0; row[k] >= 0; k += 3) {
+      for (int c = 0; c < 3; ++c)
+        tris[3 * out + c] = vd_sparse_edge_vertex(masks, vert_offset, nbr, slot, x, y, z, row[k + c]);
+      ++out;
+    }
+  }
+}

@@ -1,0 +1,29 @@
+#pragma once
+// The kernels of kernels/sparse_mesh.cl (marching cubes over the brick pool), per-item math in
+// shared/sparse_mesh.h. One item per row of 8 cells of a pool slot (slot * 64 + y + 8 z).
+#include <cstdint>
+
+#include "ocl/kernel.h"
+#include "shared/sparse_mesh.h"
+
+namespace vd::ocl {
+
+inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<float>& weight, const Buffer<int32_t>& nbr,
+                             const Buffer<uint8_t>& tri_counts, Buffer<uint16_t>& codes, Buffer<uint32_t>& row_tris)>
+    kSparseMcClassify{"vd_sparse_mc_classify"};
+inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint16_t>& codes, const Buffer<int32_t>& nbr,
+                             Buffer<uint8_t>& masks, Buffer<uint32_t>& row_verts)>
+    kSparseMcMasks{"vd_sparse_mc_masks"};
+inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint32_t>& color, const Buffer<int32_t>& nbr,
+                             const Buffer<uint32_t>& slot_keys, const Buffer<uint8_t>& masks,
+                             const Buffer<uint32_t>& row_verts, const Buffer<uint32_t>& row_vert_offset,
+                             Buffer<uint32_t>& vert_offset, Buffer<vd_float4>& positions, Buffer<vd_float4>& normals,
+                             Buffer<uint32_t>& colors)>
+    kSparseMcVertices{"vd_sparse_mc_vertices"};
+inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint32_t>& row_tris,
+                             const Buffer<uint32_t>& row_tri_offset, const Buffer<int8_t>& tri_table,
+                             const Buffer<uint8_t>& masks, const Buffer<uint32_t>& vert_offset,
+                             const Buffer<int32_t>& nbr, Buffer<int32_t>& tris)>
+    kSparseMcTriangles{"vd_sparse_mc_triangles"};
+
+}  // namespace vd::ocl

@@ -1,0 +1,161 @@
+// Marching cubes over the brick pool (kernels/sparse_mesh.cl, shared/sparse_mesh.h) against its
+// CPU reference, and against the dense grid's marching cubes over the same voxel lattice: the
+// same surface, vertex for vertex.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <set>
+
+#include "brick_scene.h"
+#include "cpu_ref/brick_hash_ref.h"
+#include "cpu_ref/cpu_ref.h"
+#include "ocl/device_ops.h"
+#include "test_scenes.h"
+
+namespace vd {
+namespace {
+
+// A vertex by its edge: the grid point it leaves (global grid coordinates) and the axis (-1 for
+// a vertex at a grid point, t = 0 or 1). Two of a vertex's coordinates are integers and the third
+// lies between its edge's ends, so this names it exactly although the dense grid and the pool sum
+// its position in different floats (local + t against global + t).
+using VertexKey = std::array<long, 4>;
+VertexKey KeyOf(vd_float4 p, const int offset[3]) {
+  const double c[3] = {double(p.x) + offset[0], double(p.y) + offset[1], double(p.z) + offset[2]};
+  VertexKey k{0, 0, 0, -1};
+  for (int a = 0; a < 3; ++a) {
+    const double f = c[a] - std::floor(c[a]);
+    if (f > 1e-3 && f < 1 - 1e-3) k[3] = a;
+    k[a] = k[3] == a ? long(std::floor(c[a])) : std::lround(c[a]);
+  }
+  return k;
+}
+
+// Triangles as sorted triples of vertex keys: the same triangle gets the same key whatever the
+// vertex numbering and the corner it starts at.
+using TriKey = std::array<VertexKey, 3>;
+std::multiset<TriKey> Triangles(const std::vector<vd_float4>& pos, const std::vector<int32_t>& tris,
+                                const int offset[3]) {
+  std::multiset<TriKey> out;
+  for (size_t t = 0; t + 2 < tris.size(); t += 3) {
+    TriKey k;
+    for (int c = 0; c < 3; ++c) k[c] = KeyOf(pos[tris[t + c]], offset);
+    std::sort(k.begin(), k.end());
+    out.insert(k);
+  }
+  return out;
+}
+
+TEST(SparseMeshParityTest, NeighbourTableMatchesTheCpu) {
+  VD_REQUIRE_OCL(ctx);
+  test::FusedBricks f;
+  test::FuseSphere(ctx, 1, &f);
+  if (HasFatalFailure()) return;
+  ASSERT_TRUE(f.table->BuildNeighbours(*ctx, f.counts.used).ok());
+  const cpu::BrickTable ref = f.Reference(ctx);
+  const size_t n = size_t(VD_BRICK_NEIGHBOURS) * f.counts.used;
+  std::vector<int32_t> dev = test::FromDevice(ctx, f.table->neighbours(), n);
+  std::vector<int32_t> cpu = cpu::BrickNeighbours(ref, f.counts.used);
+  cpu.resize(n);
+  EXPECT_EQ(dev, cpu);
+  // Every brick is its own neighbour 13, and neighbourhoods are symmetric: b's +x is a brick whose
+  // -x is b.
+  size_t linked = 0;
+  for (uint32_t s = 0; s < f.counts.used; ++s) {
+    ASSERT_EQ(dev[VD_BRICK_NEIGHBOURS * s + VD_BRICK_SELF], int32_t(s));
+    for (int k = 0; k < VD_BRICK_NEIGHBOURS; ++k) {
+      const int32_t o = dev[VD_BRICK_NEIGHBOURS * s + k];
+      if (o < 0) continue;
+      ++linked;
+      EXPECT_EQ(dev[VD_BRICK_NEIGHBOURS * size_t(o) + (VD_BRICK_NEIGHBOURS - 1 - k)], int32_t(s));
+    }
+  }
+  // A curved band of bricks: most bricks have several neighbours, none has all 26 missing.
+  EXPECT_GT(linked, size_t(8) * f.counts.used);
+  EXPECT_FALSE(f.table->BuildNeighbours(*ctx, f.table->pool() + 1).ok());
+}
+
+TEST(SparseMeshParityTest, MeshMatchesTheCpuAndTheDenseGrid) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  test::FusedBricks f;
+  test::FuseSphere(ctx, 2, &f);
+  if (HasFatalFailure()) return;
+  DeviceMesh mesh;
+  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &mesh).ok());
+  ASSERT_GT(mesh.num_triangles, 10000u);
+  const size_t nv = mesh.num_vertices, nt = mesh.num_triangles;
+  const std::vector<vd_float4> pos = test::FromDevice(ctx, mesh.positions_grid, nv);
+  const std::vector<vd_float4> nrm = test::FromDevice(ctx, mesh.normals, nv);
+  const std::vector<uint32_t> col = test::FromDevice(ctx, mesh.colors, nv);
+  const std::vector<int32_t> tris = test::FromDevice(ctx, mesh.triangles, 3 * nt);
+
+  const cpu::BrickTable ref = f.Reference(ctx);
+  const size_t n = size_t(f.counts.used) * VD_BRICK_VOXELS;
+  const std::vector<float> tsdf = test::FromDevice(ctx, f.pool->tsdf, n),
+                           weight = test::FromDevice(ctx, f.pool->weight, n);
+  const std::vector<uint32_t> color = test::FromDevice(ctx, f.pool->color, n);
+  const cpu::McMesh cm = cpu::SparseMarchingCubes(ref, f.counts.used, tsdf.data(), weight.data(), color.data());
+  ASSERT_EQ(cm.positions_grid.size(), nv);
+  ASSERT_EQ(cm.triangles.size(), 3 * nt);
+  EXPECT_EQ(tris, cm.triangles);
+  EXPECT_TRUE(test::AllClose(test::Flatten(pos), test::Flatten(cm.positions_grid), 1e-4f, 0.f));
+  EXPECT_TRUE(test::AllClose(test::Flatten(nrm), test::Flatten(cm.normals), 1e-5f, 0.f));
+  EXPECT_EQ(col, cm.colors);
+  // Every vertex is used and welded: a closed surface patch has about twice as many triangles.
+  std::vector<int> uses(nv, 0);
+  for (int32_t v : tris) {
+    ASSERT_GE(v, 0);
+    ASSERT_LT(size_t(v), nv);
+    ++uses[v];
+  }
+  EXPECT_EQ(std::count(uses.begin(), uses.end(), 0), 0);
+  EXPECT_GT(double(nt) / double(nv), 1.8);
+
+  // The dense grid's marching cubes over the same lattice, with a margin of 2 voxels of
+  // unobserved space (so its one-sided gradients at the faces touch no vertex).
+  std::vector<float> dt, dw;
+  std::vector<uint32_t> dc;
+  int lo[3];
+  const VdVolume dense = f.DenseOver(ref, 2, &dt, &dw, &dc, lo);
+  const cpu::McMesh dm = cpu::MarchingCubes(dt.data(), dw.data(), dc.data(), dense);
+  const int none[3] = {0, 0, 0};
+  const std::multiset<TriKey> sparse_set = Triangles(pos, tris, none),
+                              dense_set = Triangles(dm.positions_grid, dm.triangles, lo);
+  std::vector<TriKey> only_sparse, only_dense;
+  std::set_difference(sparse_set.begin(), sparse_set.end(), dense_set.begin(), dense_set.end(),
+                      std::back_inserter(only_sparse));
+  std::set_difference(dense_set.begin(), dense_set.end(), sparse_set.begin(), sparse_set.end(),
+                      std::back_inserter(only_dense));
+  // Every triangle of the pool is the dense grid's. The dense grid also fuses free space beyond
+  // the truncation band (weight > 0, distance 1), also in bricks the band never reached; a cell
+  // with such corners at a depth edge can emit a triangle there that the pool leaves out.
+  // Measured: 1 of 46,828, at the sphere's silhouette.
+  EXPECT_EQ(only_sparse.size(), 0u);
+  EXPECT_LE(only_dense.size(), nt / 10000) << only_dense.size() << " of " << dense_set.size();
+  EXPECT_EQ(dm.triangles.size(), 3 * (nt + only_dense.size()));
+}
+
+TEST(SparseMeshParityTest, AnEmptyPoolGivesAnEmptyMesh) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  auto table = ocl::BrickTable::Create(*ctx, 64);
+  ASSERT_TRUE(table.ok());
+  auto pool = ocl::BrickPool::Create(*ctx, 64);
+  ASSERT_TRUE(pool.ok());
+  DeviceMesh mesh;
+  mesh.num_vertices = 7;
+  ASSERT_TRUE(ops.MarchingCubes(*table, *pool, &mesh).ok());
+  EXPECT_EQ(mesh.num_vertices, 0u);
+  EXPECT_EQ(mesh.num_triangles, 0u);
+  auto small = ocl::BrickPool::Create(*ctx, 32);
+  ASSERT_TRUE(small.ok());
+  EXPECT_FALSE(ops.MarchingCubes(*table, *small, &mesh).ok());
+}
+
+}  // namespace
+}  // namespace vd
