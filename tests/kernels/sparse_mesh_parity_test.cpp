@@ -114,6 +114,13 @@ TEST(SparseMeshParityTest, MeshMatchesTheCpuAndTheDenseGrid) {
   }
   EXPECT_EQ(std::count(uses.begin(), uses.end(), 0), 0);
   EXPECT_GT(double(nt) / double(nv), 1.8);
+  // Growing the pool keeps its bricks: the same mesh after.
+  ASSERT_TRUE(f.pool->Grow(*ctx, f.pool->slots + 100).ok());
+  DeviceMesh again;
+  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &again).ok());
+  ASSERT_EQ(again.num_triangles, nt);
+  EXPECT_EQ(test::FromDevice(ctx, again.positions_grid, nv)[nv / 2].x, pos[nv / 2].x);
+  EXPECT_EQ(test::FromDevice(ctx, again.triangles, 3 * nt), tris);
 
   // The dense grid's marching cubes over the same lattice, with a margin of 2 voxels of
   // unobserved space (so its one-sided gradients at the faces touch no vertex).
@@ -152,9 +159,17 @@ TEST(SparseMeshParityTest, AnEmptyPoolGivesAnEmptyMesh) {
   ASSERT_TRUE(ops.MarchingCubes(*table, *pool, &mesh).ok());
   EXPECT_EQ(mesh.num_vertices, 0u);
   EXPECT_EQ(mesh.num_triangles, 0u);
+  // A pool with fewer bricks than the table has handed out is refused, not read past its end.
+  std::vector<uint32_t> keys;
+  for (int i = 0; i < 40; ++i) keys.push_back(vd_brick_pack(i, 0, 0));
+  ocl::Buffer<uint32_t> dkeys = test::ToDevice(ctx, keys);
+  ASSERT_TRUE(table->Insert(*ctx, dkeys, keys.size()).ok());
   auto small = ocl::BrickPool::Create(*ctx, 32);
   ASSERT_TRUE(small.ok());
   EXPECT_FALSE(ops.MarchingCubes(*table, *small, &mesh).ok());
+  ASSERT_TRUE(small->Grow(*ctx, 40).ok());
+  EXPECT_TRUE(ops.MarchingCubes(*table, *small, &mesh).ok());
+  EXPECT_EQ(mesh.num_triangles, 0u);  // bricks at rest: no surface
 }
 
 }  // namespace

@@ -73,6 +73,9 @@ void EngineParams::Bind(FlagParser* f) {
   f->AddSwitch("rigid-only", &rigid_only,
                "Rigid tracking and fusion only: no deformation field (12 instead of 44 bytes per grid point), no "
                "non-rigid solve");
+  f->AddSwitch("sparse-volume", &sparse_volume,
+               "Store the volume as 8^3 bricks allocated where the depth reaches: no box fixed at the first frame, "
+               "--max-grid-mb is the brick pool (needs --rigid-only for now; no checkpoints yet)");
   f->Add("k-min", &k_min, "Grid points are fused non-rigidly only after taking part in this many optimisations");
   f->Add("field-rigid-threshold", &field_rigid_threshold,
          "Move the field's rigid part into the camera pose once it displaces the active points by this RMS, metres "
@@ -169,6 +172,8 @@ Status EngineParams::Validate() const {
     return ParamOutOfBounds("EngineParams", "carve_rate", carve_rate, "0 <= carve_rate < 1");
   if (!(carve_radius >= 0 && carve_radius <= 8))
     return ParamOutOfBounds("EngineParams", "carve_radius", carve_radius, "0 <= carve_radius <= 8");
+  if (sparse_volume && !rigid_only)
+    return InvalidArgument("--sparse-volume needs --rigid-only: the deformation field is not on bricks yet");
   VD_RETURN_IF_ERROR(solver.Validate());
   VD_RETURN_IF_ERROR(features.Validate());
   return Status::Ok();
@@ -212,6 +217,7 @@ Status Engine::DownloadDeformation(std::vector<vd_float4>* def_pos) {
 
 Status Engine::SaveState(EngineState* state) {
   if (!initialised_) return FailedPrecondition("no model yet: nothing to save");
+  if (bricks_) return Unimplemented("checkpoints of a sparse volume (--sparse-volume) are not built yet");
   EngineState& s = *state;
   s.vol = volume_.vol;
   s.has_deformation = volume_.has_deformation();
@@ -238,6 +244,8 @@ Status Engine::SaveState(EngineState* state) {
 Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
   Reset();
   VD_RETURN_IF_ERROR(s.Validate());
+  if (params_.sparse_volume)
+    return Unimplemented("checkpoints of a sparse volume (--sparse-volume) are not built yet");
   if (s.has_deformation == params_.rigid_only)
     return FailedPrecondition(std::string("the checkpoint was written by a ") +
                               (s.has_deformation ? "non-rigid" : "rigid-only") + " server; this one is " +
@@ -562,7 +570,11 @@ Status Engine::Track(FrameResult* result) {
 
 Status Engine::ExtractMesh(FrameResult* result) {
   auto t0 = Clock::now();
-  VD_RETURN_IF_ERROR(ops_.MarchingCubes(volume_, &mesh_));
+  if (bricks_) {
+    VD_RETURN_IF_ERROR(ops_.MarchingCubes(*bricks_, *pool_, &mesh_));
+  } else {
+    VD_RETURN_IF_ERROR(ops_.MarchingCubes(volume_, &mesh_));
+  }
   if (volume_.has_deformation()) {
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
   } else {
@@ -745,7 +757,11 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       result.times[Stage::kFeatures] += result.feature_match_ms;
     }
   }
-  if (!initialised_) {
+  if (!initialised_ && params_.sparse_volume) {
+    VD_RETURN_IF_ERROR(CreateBricks());
+    pose_ = model_pose_ = Eigen::Matrix4d::Identity();
+    initialised_ = true;
+  } else if (!initialised_) {
     VD_ASSIGN_OR_RETURN(VdVolume vol, PlaceVolume(frame, params_));
     if (volume_.num_voxels() != size_t(vol.dim_x) * vol.dim_y * vol.dim_z ||
         volume_.has_deformation() == params_.rigid_only) {
@@ -822,6 +838,8 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       fp.carve_radius = params_.carve_radius;
       VD_RETURN_IF_ERROR(
           ops_.IntegrateActive(volume_, active_, fp, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
+    } else if (bricks_) {
+      VD_RETURN_IF_ERROR(IntegrateBricks(&result));
     } else {
       VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
     }
@@ -838,7 +856,59 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   return result;
 }
 
+Status Engine::CreateBricks() {
+  VdVolume vol{};
+  vol.voxel_size = params_.voxel_size;
+  vol.truncation = params_.truncation_voxels * params_.voxel_size;
+  vol.max_weight = params_.max_weight;
+  vol.origin = VD_F4(0.f, 0.f, 0.f, 1.f);
+  volume_ = DeviceVolume();
+  volume_.vol = vol;
+  bricks_failed_before_ = 0;
+  if (bricks_ && pool_) {
+    // A new model in the same table and pool: every brick back at rest.
+    VD_RETURN_IF_ERROR(bricks_->Clear(*ctx_));
+    return pool_->Reset(*ctx_);
+  }
+  // Per brick: 512 voxels of 12 bytes, its 27 neighbour slots, its key, stamp and list entry, and
+  // up to four table entries of 8 bytes (the table is a power of two at least twice the pool).
+  constexpr double kBrickBytes = VD_BRICK_VOXELS * 12.0 + VD_BRICK_NEIGHBOURS * 4.0 + 3 * 4.0 + 4 * 8.0;
+  const double slots = std::floor(params_.max_grid_mb * 1e6 / kBrickBytes);
+  if (slots < 1.0) return InvalidArgument("--max-grid-mb holds no brick");
+  VD_ASSIGN_OR_RETURN(ocl::BrickTable table, ocl::BrickTable::Create(*ctx_, uint32_t(std::min(slots, double(1 << 28)))));
+  // The pool's voxels grow with the bricks taken (IntegrateBricks); the table holds them all.
+  VD_ASSIGN_OR_RETURN(ocl::BrickPool pool, ocl::BrickPool::Create(*ctx_, std::min(table.pool(), kInitialBricks)));
+  VD_LOG_INFO << "sparse volume: room for " << table.pool() << " bricks of " << VD_BRICK << "^3 voxels at "
+              << vol.voxel_size * 1000 << " mm (" << params_.max_grid_mb << " MB)";
+  bricks_.emplace(std::move(table));
+  pool_.emplace(std::move(pool));
+  return Status::Ok();
+}
+
+Status Engine::IntegrateBricks(FrameResult* result) {
+  const VdVolume& vol = volume_.vol;
+  const float brick = VD_BRICK * vol.voxel_size;
+  const VdPose cam_to_world = ToVdPose(pose_);
+  VD_RETURN_IF_ERROR(bricks_->AllocateFromDepth(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
+  VD_RETURN_IF_ERROR(bricks_->ListVisible(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
+  VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, bricks_->Counts(*ctx_));
+  // The voxels follow the bricks handed out, half as many again ahead so growth stays rare.
+  if (counts.used > pool_->slots)
+    VD_RETURN_IF_ERROR(pool_->Grow(*ctx_, std::min(bricks_->pool(), counts.used + counts.used / 2)));
+  VD_RETURN_IF_ERROR(
+      ocl::IntegrateBricks(*ctx_, *bricks_, *pool_, vol, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
+  result->bricks_used = counts.used;
+  result->bricks_pool = bricks_->pool();
+  result->bricks_failed = int64_t(counts.failed) - int64_t(bricks_failed_before_);
+  if (result->bricks_failed > 0 && bricks_failed_before_ == 0)
+    VD_LOG_WARNING << "the brick pool is full (" << counts.used << " bricks, --max-grid-mb " << params_.max_grid_mb
+                   << "): " << result->bricks_failed << " bricks of this frame's surface were not fused";
+  bricks_failed_before_ = counts.failed;
+  return Status::Ok();
+}
+
 Status Engine::DownloadVolume(std::vector<float>* tsdf, std::vector<float>* weight, std::vector<uint32_t>* color) {
+  if (bricks_) return Unimplemented("the sparse volume (--sparse-volume) has no dense grid to download");
   const size_t n = volume_.num_voxels();
   tsdf->resize(n);
   weight->resize(n);

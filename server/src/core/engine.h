@@ -4,6 +4,7 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -14,6 +15,7 @@
 #include "core/hierarchy.h"
 #include "core/rigid_tracker.h"
 #include "core/solver.h"
+#include "ocl/brick_hash_ocl.h"
 #include "ocl/device_ops.h"
 #include "vd/common/frame.h"
 #include "vd/common/mesh.h"
@@ -68,6 +70,11 @@ struct EngineParams {
   // grid point). Without it the field exists and deforms the mesh (identity until the non-rigid
   // solve moves it).
   bool rigid_only = false;
+  // The volume as 8^3 bricks allocated where each frame's truncation band reaches (issue 17;
+  // docs/SPARSE_VOLUME.md): no box fixed at the first frame, memory in proportion to the surface,
+  // max_grid_mb the brick pool. Rigid-only for now (the field is not on bricks yet); checkpoints
+  // of it are not built yet either.
+  bool sparse_volume = false;
   // Non-rigid tracking: outer iterations (re-rendering and new correspondences) per frame. With
   // the coarse-to-fine solver one reaches the quality two did on one level at half the time.
   int nonrigid_outer_iterations = 1;
@@ -153,6 +160,11 @@ struct FrameResult {
   int icp_inliers = 0;
   float icp_rmse = 0.f;
   int64_t active_voxels = 0;
+  // Sparse volume: bricks in the pool, the pool's size, and the bricks this frame's band needed
+  // but found no room for (nonzero: the pool is full and that surface was not fused).
+  int64_t bricks_used = 0;
+  int64_t bricks_pool = 0;
+  int64_t bricks_failed = 0;
   // Non-rigid solve of this frame: constraint rows (dense pixels + 3 per sparse match), E_total before and after (0 when rigid).
   int dense_correspondences = 0;
   double energy_initial = 0.0;
@@ -249,6 +261,18 @@ class Engine {
   int frames_since_rigid_check_ = 0;
   static constexpr int kFieldRigidInterval = 30;
   DeviceVolume volume_;
+  // The sparse volume (EngineParams::sparse_volume): volume_.vol gives its voxel size, truncation
+  // and weight cap (origin 0: the bricks tile space from the world origin); volume_'s dense
+  // buffers stay empty.
+  std::optional<ocl::BrickTable> bricks_;
+  std::optional<ocl::BrickPool> pool_;
+  // Bricks of voxels the pool starts with (it grows as the table hands out slots).
+  static constexpr uint32_t kInitialBricks = 1024;
+  // Failed brick inserts counted before this frame (the table's counter only grows).
+  uint32_t bricks_failed_before_ = 0;
+  // Creates the table and pool within max_grid_mb.
+  Status CreateBricks();
+  Status IntegrateBricks(FrameResult* result);
   DeviceMesh mesh_;
   DeviceRaster model_;
   // The tracked mesh (TrackMesh): on, given in canonical coordinates (empty: the first frame's),

@@ -109,24 +109,44 @@ Status BrickTable::BuildNeighbours(Context& ctx, uint32_t used) {
 
 StatusOr<BrickPool> BrickPool::Create(Context& ctx, uint32_t slots) {
   if (slots == 0) return InvalidArgument("a brick pool needs at least one slot");
-  const size_t n = size_t(slots) * VD_BRICK_VOXELS;
   BrickPool p;
-  p.slots = slots;
-  VD_ASSIGN_OR_RETURN(p.tsdf, ctx.Alloc<float>(n));
-  VD_ASSIGN_OR_RETURN(p.weight, ctx.Alloc<float>(n));
-  VD_ASSIGN_OR_RETURN(p.color, ctx.Alloc<uint32_t>(n));
-  VD_RETURN_IF_ERROR(ctx.Fill(p.tsdf, 1.0f, n));
-  VD_RETURN_IF_ERROR(ctx.Fill(p.weight, 0.0f, n));
-  VD_RETURN_IF_ERROR(ctx.Fill(p.color, 0u, n));
+  VD_RETURN_IF_ERROR(p.Grow(ctx, slots));
   return p;
+}
+
+Status BrickPool::Grow(Context& ctx, uint32_t new_slots) {
+  if (new_slots <= slots) return Status::Ok();
+  const size_t old_n = size_t(slots) * VD_BRICK_VOXELS, n = size_t(new_slots) * VD_BRICK_VOXELS;
+  auto grow = [&](auto& buffer, auto rest) -> Status {
+    using T = decltype(rest);
+    VD_ASSIGN_OR_RETURN(Buffer<T> bigger, ctx.Alloc<T>(n));
+    VD_RETURN_IF_ERROR(ctx.Copy(buffer, bigger, old_n));
+    VD_RETURN_IF_ERROR(ctx.Fill(bigger, rest, n - old_n, old_n));
+    buffer = std::move(bigger);
+    return Status::Ok();
+  };
+  VD_RETURN_IF_ERROR(grow(tsdf, 1.0f));
+  VD_RETURN_IF_ERROR(grow(weight, 0.0f));
+  VD_RETURN_IF_ERROR(grow(color, 0u));
+  slots = new_slots;
+  return Status::Ok();
+}
+
+Status BrickPool::Reset(Context& ctx) {
+  const size_t n = size_t(slots) * VD_BRICK_VOXELS;
+  VD_RETURN_IF_ERROR(ctx.Fill(tsdf, 1.0f, n));
+  VD_RETURN_IF_ERROR(ctx.Fill(weight, 0.0f, n));
+  return ctx.Fill(color, 0u, n);
 }
 
 Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, VdVolume vol, VdCamera cam,
                        VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba) {
-  if (pool.slots < table.pool()) return InvalidArgument("the brick pool is smaller than the table's");
   if (depth.size() < size_t(cam.width) * cam.height || rgba.size() < size_t(cam.width) * cam.height)
     return InvalidArgument("depth or colour buffer smaller than the camera");
   VD_ASSIGN_OR_RETURN(const BrickCounts counts, table.Counts(ctx));
+  if (pool.slots < counts.used)
+    return InvalidArgument("the brick pool holds " + std::to_string(pool.slots) + " bricks; the table has handed out " +
+                           std::to_string(counts.used));
   return kSparseIntegrate(ctx, size_t(counts.visible) * VD_BRICK * VD_BRICK, table.visible(), table.slot_keys(),
                           pool.tsdf, pool.weight, pool.color, vol, cam, world_to_cam, depth, rgba);
 }

@@ -110,17 +110,23 @@ class BrickTable {
 };
 
 // The voxels of a brick pool: TSDF (normalised, 1 at rest), weight and colour, 512 per slot, slot
-// s's brick is the table's slot_keys[s].
+// s's brick is the table's slot_keys[s]. It may hold fewer slots than its table hands out, and
+// grows as they are taken (Grow), so its memory follows the surface.
 struct BrickPool {
   Buffer<float> tsdf, weight;
   Buffer<uint32_t> color;
   uint32_t slots = 0;
   // A pool of `slots` bricks at rest.
   static StatusOr<BrickPool> Create(Context& ctx, uint32_t slots);
+  // Grows to `slots` bricks (no-op when it holds as many), keeping the bricks it has; the new ones
+  // start at rest.
+  Status Grow(Context& ctx, uint32_t slots);
+  // Puts every brick back at rest.
+  Status Reset(Context& ctx);
 };
 
 // Rigid fusion of a depth frame (metres, 0 = none) and its colour into the bricks of `table` its
-// ListVisible listed, seen through world_to_cam; vol gives voxel_size, truncation and max_weight (the bricks tile space
+// ListVisible listed (the pool must hold every slot the table has handed out), seen through world_to_cam; vol gives voxel_size, truncation and max_weight (the bricks tile space
 // from the world origin).
 Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, VdVolume vol, VdCamera cam,
                        VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba);

@@ -147,10 +147,11 @@ class Context {
     return Status::Ok();
   }
   template <typename T>
-  Status Fill(Buffer<T>& b, const T& value, size_t n) {
-    if (n > b.size()) return OutOfRange("fill past the end of a device buffer");
+  Status Fill(Buffer<T>& b, const T& value, size_t n, size_t offset = 0) {
+    if (offset + n > b.size()) return OutOfRange("fill past the end of a device buffer");
     if (n == 0) return Status::Ok();
-    VD_CL_CHECK(clEnqueueFillBuffer(queue_, b.mem(), &value, sizeof(T), 0, n * sizeof(T), 0, nullptr, nullptr));
+    VD_CL_CHECK(clEnqueueFillBuffer(queue_, b.mem(), &value, sizeof(T), offset * sizeof(T), n * sizeof(T), 0, nullptr,
+                                    nullptr));
     return Status::Ok();
   }
   template <typename T>

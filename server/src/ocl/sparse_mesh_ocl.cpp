@@ -7,8 +7,10 @@
 namespace vd {
 
 Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& pool, DeviceMesh* mesh) {
-  if (pool.slots < table.pool()) return InvalidArgument("the brick pool is smaller than the table's");
   VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, table.Counts(*ctx_));
+  if (pool.slots < counts.used)
+    return InvalidArgument("the brick pool holds " + std::to_string(pool.slots) + " bricks; the table has handed out " +
+                           std::to_string(counts.used));
   const size_t used = counts.used, n = used * VD_BRICK_VOXELS, rows = used * VD_BRICK_ROWS;
   mesh->num_vertices = mesh->num_triangles = 0;
   if (used == 0) return Status::Ok();

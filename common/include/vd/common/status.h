@@ -51,6 +51,7 @@ inline Status DeadlineExceeded(std::string m) { return Status(StatusCode::kDeadl
 inline Status FailedPrecondition(std::string m) { return Status(StatusCode::kFailedPrecondition, std::move(m)); }
 inline Status Internal(std::string m) { return Status(StatusCode::kInternal, std::move(m)); }
 inline Status PermissionDenied(std::string m) { return Status(StatusCode::kPermissionDenied, std::move(m)); }
+inline Status Unimplemented(std::string m) { return Status(StatusCode::kUnimplemented, std::move(m)); }
 
 template <typename T>
 class [[nodiscard]] StatusOr {
