@@ -19,7 +19,6 @@ StatusOr<BrickTable> BrickTable::Create(Context& ctx, uint32_t pool) {
   VD_ASSIGN_OR_RETURN(t.stamp_, ctx.Alloc<uint32_t>(pool));
   VD_ASSIGN_OR_RETURN(t.visible_, ctx.Alloc<int32_t>(pool));
   VD_ASSIGN_OR_RETURN(t.counters_, ctx.Alloc<uint32_t>(VD_BRICK_COUNTERS));
-  VD_ASSIGN_OR_RETURN(t.neighbours_, ctx.Alloc<int32_t>(size_t(VD_BRICK_NEIGHBOURS) * pool));
   VD_RETURN_IF_ERROR(t.Clear(ctx));
   return t;
 }
@@ -104,6 +103,8 @@ StatusOr<BrickCounts> BrickTable::Counts(Context& ctx) const {
 Status BrickTable::BuildNeighbours(Context& ctx, uint32_t used) {
   if (used > pool_) return InvalidArgument("more slots in use than the pool holds");
   if (used == 0) return Status::Ok();
+  // Grows with the slots in use, as the pool's voxels do.
+  VD_RETURN_IF_ERROR(ctx.Reserve(&neighbours_, size_t(VD_BRICK_NEIGHBOURS) * used));
   return kBrickNeighbours(ctx, used, slot_keys_, keys_, slots_, capacity_, neighbours_);
 }
 

@@ -102,7 +102,7 @@ class BrickTable {
   uint32_t frame_ = 0;
   Buffer<uint32_t> keys_, slot_keys_, counters_, stamp_;
   Buffer<int32_t> slots_, visible_;
-  // VD_BRICK_NEIGHBOURS slots per pool slot (BuildNeighbours).
+  // VD_BRICK_NEIGHBOURS slots per slot in use (BuildNeighbours).
   Buffer<int32_t> neighbours_;
   // Compaction scratch: the prefix sum of keep, and the new table.
   Buffer<uint32_t> offsets_, new_keys_, new_slot_keys_;
