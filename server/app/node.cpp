@@ -415,6 +415,7 @@ class Node::Impl {
     while (process_times_.size() > 30) process_times_.pop_front();
     state_ = result->tracking_ok ? vdeform::server_status_t::STATE_TRACKING : vdeform::server_status_t::STATE_TRACKING_LOST;
     message_ = result->tracking_ok ? engine_->DeviceDescription() : result->tracking_message;
+    if (result->bricks_pool > 0) message_ += "; " + BrickPoolNote(*result);
     dense_ = result->dense_correspondences;
     sparse_ = result->sparse_matches;
     if (result->energies_evaluated) {

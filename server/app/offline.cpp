@@ -157,11 +157,12 @@ int RunOffline(const ServerOptions& options) {
     }
     ++processed;
     if (!options.quiet) {
-      char line[256];
-      std::snprintf(line, sizeof(line), "frame %lld%s%s  %.1f ms  %zu triangles  icp inliers %d%s",
+      char line[512];
+      std::snprintf(line, sizeof(line), "frame %lld%s%s  %.1f ms  %zu triangles  icp inliers %d%s%s%s",
                     static_cast<long long>(processed), total > 0 ? "/" : "",
                     total > 0 ? std::to_string(total).c_str() : "", ms, result->live_mesh.num_triangles(),
-                    result->icp_inliers, result->tracking_ok ? "" : "  LOST");
+                    result->icp_inliers, result->tracking_ok ? "" : "  LOST", result->bricks_pool > 0 ? "  " : "",
+                    result->bricks_pool > 0 ? BrickPoolNote(*result).c_str() : "");
       std::fprintf(stderr, tty ? "\r%s\033[K" : "%s\n", line);
     }
   }

@@ -24,6 +24,14 @@ __kernel void vd_brick_table_insert(__global const uint* in, __global uint* keys
   vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, in[i]);
 }
 
+/* One work item per pool slot to restore: key in[i] goes back into slot i. */
+__kernel void vd_brick_table_restore(__global const uint* in, __global uint* keys, __global int* slots,
+                                     __global uint* slot_keys, uint capacity, __global uint* counters, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  vd_brick_restore(keys, slots, slot_keys, capacity, counters, in[i], i);
+}
+
 /* One work item per key of `in`: its slot, or -1. */
 __kernel void vd_brick_table_lookup(__global const uint* in, __global const uint* keys, __global const int* slots,
                                     uint capacity, __global int* out, int vd_items) {

@@ -191,11 +191,12 @@ def run_kernel_bench(args, voxel):
     return r
 
 
-def run_fusion_bench(args, voxel):
+def run_fusion_bench(args, voxel, sparse=False):
     """vd_fusion_bench: the same frames with the ground-truth poses, integration timed per frame,
-    one extraction: the job Open3D's rows do."""
+    one extraction: the job Open3D's rows do. sparse: into the brick pool of the sparse volume."""
     exe = os.path.join(args.vd_build, "tests/bench/vd_fusion_bench")
-    out = subprocess.run([exe, "--data", args.data, "--voxel-size", repr(voxel), "--frames", str(args.frames)],
+    out = subprocess.run([exe, "--data", args.data, "--voxel-size", repr(voxel), "--frames", str(args.frames),
+                          "--sparse", "1" if sparse else "0"],
                          capture_output=True, text=True)
     if out.returncode != 0:
         raise SystemExit("vd_fusion_bench failed (rc %d): %s" % (out.returncode, out.stderr[-2000:]))
@@ -276,6 +277,7 @@ def main():
         if args.vd_build:
             row["kernel"] = run_kernel_bench(args, v)
             row["fusion"] = run_fusion_bench(args, v)
+            row["fusion_sparse"] = run_fusion_bench(args, v, sparse=True)
             row["server"] = run_server(args, v)
         results.append(row)
         print_row(row)
@@ -326,6 +328,10 @@ def print_row(row):
                  fu["extract_ms"], "%d" % fu["triangles"], "-"))
     print("  (fusion bench grid %s, %d bricks integrated per frame on average)" % (
         "x".join(str(g) for g in fu["grid"]), fu["bricks_mean"]))
+    fs = row.get("fusion_sparse")
+    if fs:
+        print(fmt % ("ours vd_fusion_bench sparse (GT poses)", fs["integrate_mean_ms"], fs["integrate_median_ms"],
+                     fs["extract_ms"], "%d" % fs["triangles"], "-"))
     print(fmt % ("ours vdeform-server (tracked)", srv_int, srv_int_med, srv_mc, "-",
                  "%.0f" % (sv["peak_resident_bytes"] / 1e6)))
     print("  (our dense grid %dx%dx%d = %.1f M voxels x 12 B = %.0f MB; server OpenCL peak %.0f MB; %d frames, "
@@ -335,8 +341,11 @@ def print_row(row):
     print("ratios ours / Open3D (< 1: ours faster):")
     for oname, r in o3d_rows:
         oi, oe = mean(r["integrate_ms"]), r["extract_ms"]
-        for lbl, i, m in (("fusion bench", fu["integrate_mean_ms"], fu["extract_ms"]), ("server", srv_int, srv_mc),
-                          ("kernel OpenCL", k["integrate_ocl_ms"], k["marching_cubes_ocl_ms"])):
+        ours = [("fusion bench", fu["integrate_mean_ms"], fu["extract_ms"])]
+        if fs:
+            ours.append(("fusion sparse", fs["integrate_mean_ms"], fs["extract_ms"]))
+        ours += [("server", srv_int, srv_mc), ("kernel OpenCL", k["integrate_ocl_ms"], k["marching_cubes_ocl_ms"])]
+        for lbl, i, m in ours:
             print("  ours (%-13s) / %-30s integrate per frame %6.2fx   %d x integrate + 1 extraction %6.2fx" % (
                 lbl, oname, i / oi, n, (n * i + m) / (n * oi + oe)))
 

@@ -367,6 +367,78 @@ TEST(CheckpointTest, RigidCheckpointIsRefusedByANonRigidEngine) {
   EXPECT_FALSE((*e)->has_model());
 }
 
+// A sparse volume (--sparse-volume) round trip: every brick back in its slot, so the resumed
+// engine's meshes are identical to the original's, before and after the next frames; corrupt brick
+// lists are refused, and a dense engine refuses a sparse checkpoint.
+TEST(CheckpointTest, SparseVolumeResumesWithIdenticalMeshes) {
+  if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  SyntheticOptions so;
+  auto scene = MakeSyntheticScene("rigid", so);
+  ASSERT_TRUE(scene.ok());
+  EngineParams p;
+  p.voxel_size = 0.006f;
+  p.rigid_only = true;
+  p.sparse_volume = true;
+  auto a = Engine::Create(p, "");
+  auto b = Engine::Create(p, "");
+  ASSERT_TRUE(a.ok() && b.ok());
+  FrameResult last;
+  for (int k = 0; k < 12; k += 3) {
+    auto r = (*a)->Process((*scene)->Render(k));
+    ASSERT_TRUE(r.ok() && r->tracking_ok) << k;
+    last = std::move(r).value();
+  }
+  EngineState saved;
+  ASSERT_TRUE((*a)->SaveState(&saved).ok());
+  ASSERT_TRUE(saved.sparse);
+  EXPECT_EQ(int64_t(saved.brick_keys.size()), last.bricks_used);
+  const std::string bytes = EncodeCheckpoint(saved);
+  std::printf("sparse checkpoint: %zu bricks, %zu KiB\n", saved.brick_keys.size(), bytes.size() >> 10);
+  auto loaded = DecodeCheckpoint(bytes);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_EQ(loaded->brick_keys, saved.brick_keys);
+  EXPECT_EQ(loaded->tsdf, saved.tsdf);
+  FrameResult restored;
+  ASSERT_TRUE((*b)->RestoreState(*loaded, &restored).ok());
+  EXPECT_EQ(restored.canonical_mesh.positions, last.canonical_mesh.positions);
+  EXPECT_EQ(restored.canonical_mesh.triangles, last.canonical_mesh.triangles);
+  for (int k = 12; k < 21; k += 3) {
+    const RgbdFrame f = (*scene)->Render(k);
+    auto ra = (*a)->Process(f);
+    auto rb = (*b)->Process(f);
+    ASSERT_TRUE(ra.ok() && rb.ok());
+    EXPECT_EQ(ra->pose, rb->pose) << k;
+    EXPECT_EQ(ra->live_mesh.positions, rb->live_mesh.positions) << k;
+    EXPECT_EQ(ra->live_mesh.triangles, rb->live_mesh.triangles) << k;
+    EXPECT_EQ(ra->bricks_used, rb->bricks_used) << k;
+  }
+
+  // A repeated brick or a word that is no brick key: refused at decoding, never loaded.
+  EngineState twice = saved;
+  twice.brick_keys[1] = twice.brick_keys[0];
+  EXPECT_FALSE(twice.Validate().ok());
+  EXPECT_FALSE(DecodeCheckpoint(EncodeCheckpoint(twice)).ok());
+  EngineState bad_key = saved;
+  bad_key.brick_keys[0] = 0xC0000000u;
+  EXPECT_FALSE(DecodeCheckpoint(EncodeCheckpoint(bad_key)).ok());
+  EngineState short_arrays = saved;
+  short_arrays.tsdf.pop_back();
+  EXPECT_FALSE(short_arrays.Validate().ok());
+  // A dense engine, and a sparse one whose pool is too small, refuse it and keep no model.
+  EngineParams dense = p;
+  dense.sparse_volume = false;
+  auto c = Engine::Create(dense, "");
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ((*c)->RestoreState(saved).code(), StatusCode::kFailedPrecondition);
+  EXPECT_FALSE((*c)->has_model());
+  EngineParams small = p;
+  small.max_grid_mb = 1.0;
+  auto d = Engine::Create(small, "");
+  ASSERT_TRUE(d.ok());
+  EXPECT_EQ((*d)->RestoreState(saved).code(), StatusCode::kFailedPrecondition);
+  EXPECT_FALSE((*d)->has_model());
+}
+
 // The node: periodic/forced checkpoints, --resume restoring the model and its meshes, a corrupt
 // checkpoint reported in the status and a new model started.
 class NodeCheckpointTest : public ::testing::Test {

@@ -121,6 +121,53 @@ TEST(BrickHashParityTest, InsertAndLookupMatchTheCpuUnderCollisions) {
   for (size_t i = 0; i < query.size(); ++i) EXPECT_EQ(got[i], i < distinct.size() ? dev.at(query[i]) : -1) << i;
 }
 
+// A table restored from its slots' keys (as a checkpoint stores them) gives every key its slot
+// back; a repeated or invalid key is refused.
+TEST(BrickHashParityTest, RestoreGivesEachKeyItsSlotBack) {
+  VD_REQUIRE_OCL(ctx);
+  std::vector<uint32_t> distinct;
+  Keys(500, 7, &distinct);
+  std::mt19937 rng(11);
+  std::shuffle(distinct.begin(), distinct.end(), rng);
+  auto table = ocl::BrickTable::Create(*ctx, 600);
+  ASSERT_TRUE(table.ok());
+  ocl::Buffer<uint32_t> din = test::ToDevice(ctx, distinct);
+  ASSERT_TRUE(table->Restore(*ctx, din, distinct.size()).ok());
+  cpu::BrickTable ref(table->capacity(), table->pool());
+  cpu::BrickRestore(distinct.data(), distinct.size(), &ref);
+  const std::map<uint32_t, int32_t> dev = Contents(ctx, *table);
+  EXPECT_EQ(dev, Contents(ref.keys, ref.slots));
+  ASSERT_EQ(dev.size(), distinct.size());
+  for (size_t s = 0; s < distinct.size(); ++s) EXPECT_EQ(dev.at(distinct[s]), int32_t(s));
+  std::vector<uint32_t> slot_keys = test::FromDevice(ctx, table->slot_keys(), distinct.size());
+  EXPECT_EQ(slot_keys, distinct);
+  auto counts = table->Counts(*ctx);
+  ASSERT_TRUE(counts.ok());
+  EXPECT_EQ(counts->used, distinct.size());
+  EXPECT_EQ(counts->failed, 0u);
+  // Inserting afterwards continues behind the restored slots.
+  const std::vector<uint32_t> more = {vd_brick_pack(300, 300, 300)};
+  ocl::Buffer<uint32_t> dmore = test::ToDevice(ctx, more);
+  ASSERT_TRUE(table->Insert(*ctx, dmore, 1).ok());
+  EXPECT_EQ(Contents(ctx, *table).at(more[0]), 500);
+
+  // A repeated key, and a word that is no brick key: refused, the table left empty.
+  std::vector<uint32_t> bad = {distinct[0], distinct[1], distinct[0]};
+  ocl::Buffer<uint32_t> dbad = test::ToDevice(ctx, bad);
+  const Status repeated = table->Restore(*ctx, dbad, bad.size());
+  EXPECT_EQ(repeated.code(), StatusCode::kDataLoss) << repeated.ToString();
+  EXPECT_TRUE(Contents(ctx, *table).empty());
+  bad = {distinct[0], 0xC0000001u};
+  dbad = test::ToDevice(ctx, bad);
+  EXPECT_EQ(table->Restore(*ctx, dbad, bad.size()).code(), StatusCode::kDataLoss);
+  cpu::BrickTable ref_bad(table->capacity(), table->pool());
+  cpu::BrickRestore(bad.data(), bad.size(), &ref_bad);
+  EXPECT_EQ(ref_bad.counters[VD_BRICK_COUNT_FAILED], 1u);
+  std::vector<uint32_t> many(601, 0u);
+  ocl::Buffer<uint32_t> dmany = test::ToDevice(ctx, many);
+  EXPECT_EQ(table->Restore(*ctx, dmany, many.size()).code(), StatusCode::kOutOfRange);
+}
+
 TEST(BrickHashParityTest, APoolUsedUpCountsTheBricksLeftOut) {
   VD_REQUIRE_OCL(ctx);
   std::vector<uint32_t> distinct;

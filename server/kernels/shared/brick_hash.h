@@ -103,6 +103,22 @@ VD_INLINE int vd_brick_allocate(VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, V
   return 1;
 }
 
+/* Puts a key back into pool slot `slot` (restoring a table from its slots' keys, as a checkpoint
+ * stores them): returns 0 and counts a failure when the key is not a brick's, is there already
+ * (a duplicate) or finds no entry. */
+VD_INLINE int vd_brick_restore(VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys,
+                               vd_uint capacity, VD_GLOBAL vd_uint* counters, vd_uint key, int slot) {
+  int fresh = 0;
+  int h = (key >> 30) == 0u ? vd_brick_insert(keys, capacity, key, &fresh) : -1;
+  if (h < 0 || !fresh) {
+    VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
+    return 0;
+  }
+  slots[h] = slot;
+  slot_keys[slot] = key;
+  return 1;
+}
+
 /* The brick holding world point p for bricks of `brick_size` metres. */
 VD_INLINE void vd_brick_of(vd_float4 p, float brick_size, int* bx, int* by, int* bz) {
   *bx = (int)floor(p.x / brick_size);

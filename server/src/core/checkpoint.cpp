@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -19,9 +20,13 @@ namespace vd {
 namespace {
 
 constexpr char kMagic[8] = {'V', 'D', 'C', 'K', 'P', 'T', '0', '1'};
-// 2: the tracked mesh after the keyframes. 3: the feature links after the tracked mesh. Version 1
-// and 2 files (no tracked mesh, no links) are still read.
-constexpr uint32_t kFormatVersion = 3;
+// 2: the tracked mesh after the keyframes. 3: the feature links after the tracked mesh. 4: a sparse
+// flag after the deformation flag; a sparse volume stores its bricks by key where the dense grid
+// stores its brick list. Version 1 to 3 files (no tracked mesh, no links, dense) are still read.
+constexpr uint32_t kFormatVersion = 4;
+constexpr size_t kBrickVoxels = 512;
+// Bricks a sparse checkpoint may declare (2^28 is the most a brick table holds).
+constexpr size_t kMaxBricks = size_t(1) << 28;
 constexpr size_t kMaxTrackedVertices = size_t(1) << 24;
 constexpr size_t kHeaderBytes = 8 + 8 + 32;
 constexpr int kBrick = 8;
@@ -144,16 +149,30 @@ Status SyncFile(const std::string& path) {
 }  // namespace
 
 Status EngineState::Validate() const {
-  if (vol.dim_x < 2 || vol.dim_y < 2 || vol.dim_z < 2 || num_voxels() > kMaxVoxels)
+  if (sparse) {
+    if (has_deformation) return InvalidArgument("checkpoint of a sparse volume with a deformation field");
+    if (!(vol.voxel_size > 0.f && vol.voxel_size < 1.f) || !(vol.truncation > 0.f) || !(vol.max_weight > 0.f))
+      return InvalidArgument("checkpoint volume parameters are invalid");
+    const size_t n = brick_keys.size() * kBrickVoxels;
+    if (brick_keys.size() > kMaxBricks || tsdf.size() != n || weight.size() != n || color.size() != n)
+      return InvalidArgument("checkpoint brick arrays do not match its bricks");
+    std::vector<uint32_t> sorted = brick_keys;
+    std::sort(sorted.begin(), sorted.end());
+    if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
+      return InvalidArgument("checkpoint names a brick twice");
+    for (uint32_t k : brick_keys)
+      if (k >> 30) return InvalidArgument("checkpoint brick key " + std::to_string(k) + " is not a brick's");
+  } else if (vol.dim_x < 2 || vol.dim_y < 2 || vol.dim_z < 2 || num_voxels() > kMaxVoxels) {
     return InvalidArgument("checkpoint grid " + std::to_string(vol.dim_x) + "x" + std::to_string(vol.dim_y) + "x" +
                            std::to_string(vol.dim_z) + " is out of range");
+  }
   if (!(vol.voxel_size > 0.f && vol.voxel_size < 1.f) || !(vol.truncation > 0.f) || !(vol.max_weight > 0.f) ||
       !std::isfinite(vol.origin.x) || !std::isfinite(vol.origin.y) || !std::isfinite(vol.origin.z))
     return InvalidArgument("checkpoint grid placement is invalid");
   const size_t n = num_voxels();
-  if (tsdf.size() != n || weight.size() != n || color.size() != n)
+  if (!sparse && (tsdf.size() != n || weight.size() != n || color.size() != n))
     return InvalidArgument("checkpoint volume arrays do not match the grid");
-  if (has_deformation != (def_pos.size() == n) || def_rot.size() != def_pos.size())
+  if (!sparse && (has_deformation != (def_pos.size() == n) || def_rot.size() != def_pos.size()))
     return InvalidArgument("checkpoint deformation arrays do not match the grid");
   if (!pose.allFinite()) return InvalidArgument("checkpoint pose is not finite");
   if (cam.width <= 0 || cam.height <= 0 || cam.width > 16384 || cam.height > 16384 || !(cam.fx > 0.f) ||
@@ -195,6 +214,7 @@ std::string EncodeCheckpoint(const EngineState& s) {
   w.Put<uint32_t>(sizeof(VdVolume));
   w.Put(s.vol);
   w.Put<uint8_t>(s.has_deformation);
+  w.Put<uint8_t>(s.sparse);
   for (int r = 0; r < 4; ++r)
     for (int c = 0; c < 4; ++c) w.Put(s.pose(r, c));
   w.Put<uint32_t>(sizeof(VdCamera));
@@ -203,10 +223,19 @@ std::string EncodeCheckpoint(const EngineState& s) {
   w.Put(s.frames_seen);
   w.Put(s.last_seq);
   w.PutString(s.source_id);
-  // Bricks holding anything but reset values, each stored whole.
+  if (s.sparse) {
+    // Every slot's brick, in slot order, each stored whole.
+    w.PutVector(s.brick_keys);
+    for (size_t i = 0; i < s.tsdf.size(); ++i) {
+      w.Put(s.tsdf[i]);
+      w.Put(s.weight[i]);
+      w.Put(s.color[i]);
+    }
+  }
+  // Bricks holding anything but reset values, each stored whole (none for a sparse volume).
   const BrickGrid grid(s.vol);
   std::vector<uint32_t> stored;
-  for (size_t b = 0; b < grid.count(); ++b) {
+  for (size_t b = 0; !s.sparse && b < grid.count(); ++b) {
     bool rest = true;
     grid.ForEach(s.vol, b, [&](size_t i, int x, int y, int z) { rest = rest && AtRest(s, i, x, y, z); });
     if (!rest) stored.push_back(uint32_t(b));
@@ -274,6 +303,11 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
   uint8_t has_def = 0;
   VD_RETURN_IF_ERROR(r.Get(&has_def, "deformation flag"));
   s.has_deformation = has_def != 0;
+  if (version >= 4) {
+    uint8_t sparse = 0;
+    VD_RETURN_IF_ERROR(r.Get(&sparse, "sparse flag"));
+    s.sparse = sparse != 0;
+  }
   for (int row = 0; row < 4; ++row)
     for (int c = 0; c < 4; ++c) VD_RETURN_IF_ERROR(r.Get(&s.pose(row, c), "pose"));
   VD_RETURN_IF_ERROR(r.Get(&struct_size, "camera size"));
@@ -283,13 +317,29 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
   VD_RETURN_IF_ERROR(r.Get(&s.frames_seen, "frames_seen"));
   VD_RETURN_IF_ERROR(r.Get(&s.last_seq, "last_seq"));
   VD_RETURN_IF_ERROR(r.GetString(&s.source_id, "source_id"));
-  if (s.vol.dim_x < 2 || s.vol.dim_y < 2 || s.vol.dim_z < 2 || s.num_voxels() > kMaxVoxels)
+  if (s.sparse) {
+    if (s.has_deformation) return DataLoss("checkpoint of a sparse volume with a deformation field");
+    VD_RETURN_IF_ERROR(r.GetVector(&s.brick_keys, kMaxBricks, "brick keys"));
+    const size_t voxels = s.brick_keys.size() * kBrickVoxels;
+    if (voxels > r.remaining() / 12) return DataLoss("checkpoint declares more bricks than it holds");
+    s.tsdf.resize(voxels);
+    s.weight.resize(voxels);
+    s.color.resize(voxels);
+    for (size_t i = 0; i < voxels; ++i) {
+      VD_RETURN_IF_ERROR(r.Get(&s.tsdf[i], "tsdf"));
+      VD_RETURN_IF_ERROR(r.Get(&s.weight[i], "weight"));
+      VD_RETURN_IF_ERROR(r.Get(&s.color[i], "color"));
+    }
+  } else if (s.vol.dim_x < 2 || s.vol.dim_y < 2 || s.vol.dim_z < 2 || s.num_voxels() > kMaxVoxels) {
     return DataLoss("checkpoint grid dimensions are out of range");
+  }
   // Rest values everywhere, then the stored bricks over them.
-  const size_t n = s.num_voxels();
-  s.tsdf.assign(n, kRestTsdf);
-  s.weight.assign(n, 0.f);
-  s.color.assign(n, 0u);
+  const size_t n = s.sparse ? 0 : s.num_voxels();
+  if (!s.sparse) {
+    s.tsdf.assign(n, kRestTsdf);
+    s.weight.assign(n, 0.f);
+    s.color.assign(n, 0u);
+  }
   const BrickGrid grid(s.vol);
   if (s.has_deformation) {
     s.def_pos.resize(n);
@@ -298,7 +348,7 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
       grid.ForEach(s.vol, b, [&](size_t i, int x, int y, int z) { s.def_pos[i] = vd_rest_position(s.vol, x, y, z); });
   }
   std::vector<uint32_t> stored;
-  VD_RETURN_IF_ERROR(r.GetVector(&stored, grid.count(), "brick list"));
+  VD_RETURN_IF_ERROR(r.GetVector(&stored, s.sparse ? 0 : grid.count(), "brick list"));
   uint32_t last = 0;
   for (size_t k = 0; k < stored.size(); ++k) {
     const uint32_t b = stored[k];

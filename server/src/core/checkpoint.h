@@ -24,6 +24,11 @@ namespace vd {
 struct EngineState {
   VdVolume vol{};
   bool has_deformation = false;
+  // A sparse volume (--sparse-volume): vol gives voxel size, truncation and weight cap only (no
+  // box), brick_keys the key of each pool slot in slot order, and tsdf, weight and colour 512
+  // voxels per slot in the same order, so a restored pool has every brick in its old slot.
+  bool sparse = false;
+  std::vector<uint32_t> brick_keys;
   std::vector<float> tsdf, weight;
   std::vector<uint32_t> color;
   std::vector<vd_float4> def_pos, def_rot;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <opencv2/core/utility.hpp>
@@ -217,11 +218,26 @@ Status Engine::DownloadDeformation(std::vector<vd_float4>* def_pos) {
 
 Status Engine::SaveState(EngineState* state) {
   if (!initialised_) return FailedPrecondition("no model yet: nothing to save");
-  if (bricks_) return Unimplemented("checkpoints of a sparse volume (--sparse-volume) are not built yet");
   EngineState& s = *state;
   s.vol = volume_.vol;
   s.has_deformation = volume_.has_deformation();
-  VD_RETURN_IF_ERROR(DownloadVolume(&s.tsdf, &s.weight, &s.color));
+  s.sparse = bricks_.has_value();
+  s.brick_keys.clear();
+  if (s.sparse) {
+    // Every slot handed out, in slot order, with its voxels.
+    VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, bricks_->Counts(*ctx_));
+    const size_t n = size_t(counts.used) * VD_BRICK_VOXELS;
+    s.brick_keys.resize(counts.used);
+    s.tsdf.resize(n);
+    s.weight.resize(n);
+    s.color.resize(n);
+    VD_RETURN_IF_ERROR(ctx_->Download(bricks_->slot_keys(), s.brick_keys.data(), counts.used));
+    VD_RETURN_IF_ERROR(ctx_->Download(pool_->tsdf, s.tsdf.data(), n));
+    VD_RETURN_IF_ERROR(ctx_->Download(pool_->weight, s.weight.data(), n));
+    VD_RETURN_IF_ERROR(ctx_->Download(pool_->color, s.color.data(), n));
+  } else {
+    VD_RETURN_IF_ERROR(DownloadVolume(&s.tsdf, &s.weight, &s.color));
+  }
   s.def_pos.clear();
   s.def_rot.clear();
   if (s.has_deformation) {
@@ -244,28 +260,51 @@ Status Engine::SaveState(EngineState* state) {
 Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
   Reset();
   VD_RETURN_IF_ERROR(s.Validate());
-  if (params_.sparse_volume)
-    return Unimplemented("checkpoints of a sparse volume (--sparse-volume) are not built yet");
+  if (s.sparse != params_.sparse_volume)
+    return FailedPrecondition(std::string("the checkpoint holds a ") + (s.sparse ? "sparse" : "dense") +
+                              " volume; this server runs " + (params_.sparse_volume ? "with" : "without") +
+                              " --sparse-volume");
   if (s.has_deformation == params_.rigid_only)
     return FailedPrecondition(std::string("the checkpoint was written by a ") +
                               (s.has_deformation ? "non-rigid" : "rigid-only") + " server; this one is " +
                               (params_.rigid_only ? "rigid-only" : "non-rigid"));
-  const double budget = params_.max_grid_mb * 1e6 / (params_.rigid_only ? 12.0 : 44.0);
-  if (double(s.num_voxels()) > budget)
-    return FailedPrecondition("the checkpoint's grid (" + std::to_string(s.num_voxels()) +
-                              " points) does not fit max_grid_mb");
-  if (volume_.num_voxels() != s.num_voxels() || volume_.has_deformation() != s.has_deformation) {
-    volume_ = DeviceVolume();
-    VD_RETURN_IF_ERROR(ops_.AllocVolume(s.vol, s.has_deformation, &volume_));
-  }
-  volume_.vol = s.vol;
-  const size_t n = s.num_voxels();
-  VD_RETURN_IF_ERROR(ctx_->Upload(volume_.tsdf, s.tsdf.data(), n));
-  VD_RETURN_IF_ERROR(ctx_->Upload(volume_.weight, s.weight.data(), n));
-  VD_RETURN_IF_ERROR(ctx_->Upload(volume_.color, s.color.data(), n));
-  if (s.has_deformation) {
-    VD_RETURN_IF_ERROR(ctx_->Upload(volume_.def_pos, s.def_pos.data(), n));
-    VD_RETURN_IF_ERROR(ctx_->Upload(volume_.def_rot, s.def_rot.data(), n));
+  if (s.sparse) {
+    // The checkpoint's voxel size, truncation and weight cap go on, as a dense grid's placement does.
+    VD_RETURN_IF_ERROR(CreateBricks());
+    volume_.vol = s.vol;
+    const size_t bricks = s.brick_keys.size(), n = bricks * VD_BRICK_VOXELS;
+    if (bricks > bricks_->pool())
+      return FailedPrecondition("the checkpoint's " + std::to_string(bricks) + " bricks do not fit --max-grid-mb (" +
+                                std::to_string(bricks_->pool()) + " bricks)");
+    VD_ASSIGN_OR_RETURN(ocl::Buffer<uint32_t> keys, ctx_->Alloc<uint32_t>(std::max<size_t>(bricks, 1)));
+    VD_RETURN_IF_ERROR(ctx_->Upload(keys, s.brick_keys.data(), bricks));
+    Status restored = bricks_->Restore(*ctx_, keys, bricks);
+    if (restored.ok()) restored = pool_->Grow(*ctx_, uint32_t(bricks));
+    if (restored.ok()) restored = ctx_->Upload(pool_->tsdf, s.tsdf.data(), n);
+    if (restored.ok()) restored = ctx_->Upload(pool_->weight, s.weight.data(), n);
+    if (restored.ok()) restored = ctx_->Upload(pool_->color, s.color.data(), n);
+    if (!restored.ok()) {
+      Reset();
+      return restored;
+    }
+  } else {
+    const double budget = params_.max_grid_mb * 1e6 / (params_.rigid_only ? 12.0 : 44.0);
+    if (double(s.num_voxels()) > budget)
+      return FailedPrecondition("the checkpoint's grid (" + std::to_string(s.num_voxels()) +
+                                " points) does not fit max_grid_mb");
+    if (volume_.num_voxels() != s.num_voxels() || volume_.has_deformation() != s.has_deformation) {
+      volume_ = DeviceVolume();
+      VD_RETURN_IF_ERROR(ops_.AllocVolume(s.vol, s.has_deformation, &volume_));
+    }
+    volume_.vol = s.vol;
+    const size_t n = s.num_voxels();
+    VD_RETURN_IF_ERROR(ctx_->Upload(volume_.tsdf, s.tsdf.data(), n));
+    VD_RETURN_IF_ERROR(ctx_->Upload(volume_.weight, s.weight.data(), n));
+    VD_RETURN_IF_ERROR(ctx_->Upload(volume_.color, s.color.data(), n));
+    if (s.has_deformation) {
+      VD_RETURN_IF_ERROR(ctx_->Upload(volume_.def_pos, s.def_pos.data(), n));
+      VD_RETURN_IF_ERROR(ctx_->Upload(volume_.def_rot, s.def_rot.data(), n));
+    }
   }
   cam_ = s.cam;
   pose_ = model_pose_ = s.pose;
@@ -854,6 +893,17 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   model_pose_ = pose_;
   result.active_voxels = int64_t(active_.count);
   return result;
+}
+
+std::string BrickPoolNote(const FrameResult& r) {
+  char note[200];
+  std::snprintf(note, sizeof(note), "bricks %lld of %lld (%.0f %%)", static_cast<long long>(r.bricks_used),
+                static_cast<long long>(r.bricks_pool), r.bricks_pool > 0 ? 100.0 * r.bricks_used / r.bricks_pool : 0.0);
+  std::string out = note;
+  if (r.bricks_failed > 0)
+    out += "; BRICK POOL FULL: " + std::to_string(r.bricks_failed) +
+           " bricks of this frame's surface were not fused (raise --max-grid-mb)";
+  return out;
 }
 
 Status Engine::CreateBricks() {

@@ -327,6 +327,10 @@ class Engine {
   int valid_pixels_ = 0;
 };
 
+// The sparse volume's pool use of a frame for status lines: "bricks U of P (x %)", and when the
+// pool is full, how many bricks of the frame's surface found no room.
+std::string BrickPoolNote(const FrameResult& r);
+
 // Conversions between Eigen poses and the kernels' VdPose.
 VdPose ToVdPose(const Eigen::Matrix4d& T);
 // Process resident set size now and at its peak, bytes (from /proc/self/status).

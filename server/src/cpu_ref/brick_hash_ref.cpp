@@ -26,6 +26,12 @@ void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* t) {
     vd_brick_allocate(t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, t->counters, in[i]);
 }
 
+void BrickRestore(const uint32_t* in, size_t n, BrickTable* t) {
+  for (size_t s = 0; s < n; ++s)
+    vd_brick_restore(t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity, t->counters, in[s], int(s));
+  t->counters[VD_BRICK_COUNT_TAKEN] = uint32_t(n);
+}
+
 void BrickLookup(const uint32_t* in, size_t n, const BrickTable& t, int32_t* out) {
   for (size_t i = 0; i < n; ++i) out[i] = vd_brick_find(t.keys.data(), t.slots.data(), t.capacity, in[i]);
 }

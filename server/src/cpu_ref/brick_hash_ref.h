@@ -22,6 +22,8 @@ struct BrickTable {
 void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
                      BrickTable* table);
 void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* table);
+// Slot s gets key in[s] (the table must be empty); failures counted as the device counts them.
+void BrickRestore(const uint32_t* in, size_t n, BrickTable* table);
 void BrickLookup(const uint32_t* in, size_t n, const BrickTable& table, int32_t* out);
 // Keeps the bricks whose slot s has keep[s] != 0, renumbered by the exclusive prefix sum of keep.
 BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep);

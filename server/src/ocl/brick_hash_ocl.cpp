@@ -59,6 +59,25 @@ Status BrickTable::Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n) 
   return kBrickInsertKeys(ctx, n, keys, keys_, slots_, slot_keys_, capacity_, pool_, counters_);
 }
 
+Status BrickTable::Restore(Context& ctx, const Buffer<uint32_t>& keys, size_t n) {
+  if (n > pool_)
+    return OutOfRange(std::to_string(n) + " bricks do not fit a pool of " + std::to_string(pool_) + " bricks");
+  if (keys.size() < n) return InvalidArgument("fewer keys than asked to restore");
+  VD_RETURN_IF_ERROR(Clear(ctx));
+  if (n == 0) return Status::Ok();
+  VD_RETURN_IF_ERROR(kBrickRestore(ctx, n, keys, keys_, slots_, slot_keys_, capacity_, counters_));
+  const uint32_t taken = uint32_t(n);
+  VD_RETURN_IF_ERROR(ctx.Upload(counters_, &taken, 1, VD_BRICK_COUNT_TAKEN));
+  VD_ASSIGN_OR_RETURN(const BrickCounts counts, Counts(ctx));
+  if (counts.failed > 0) {
+    const Status cleared = Clear(ctx);
+    (void)cleared;
+    return DataLoss(std::to_string(counts.failed) + " of " + std::to_string(n) +
+                    " brick keys to restore are invalid or repeated");
+  }
+  return Status::Ok();
+}
+
 Status BrickTable::Lookup(Context& ctx, const Buffer<uint32_t>& keys, size_t n, Buffer<int32_t>& out) const {
   if (keys.size() < n || out.size() < n) return InvalidArgument("lookup buffers smaller than n");
   return kBrickLookup(ctx, n, keys, keys_, slots_, capacity_, out);

@@ -22,6 +22,10 @@ inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose ca
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
                              Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
     kBrickInsertKeys{"vd_brick_table_insert"};
+// One item per slot restored.
+inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
+                             Buffer<uint32_t>& slot_keys, uint32_t capacity, Buffer<uint32_t>& counters)>
+    kBrickRestore{"vd_brick_table_restore"};
 // One item per key looked up.
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, const Buffer<uint32_t>& keys, const Buffer<int32_t>& slots,
                              uint32_t capacity, Buffer<int32_t>& out)>
@@ -85,6 +89,10 @@ class BrickTable {
   const Buffer<int32_t>& visible() const { return visible_; }
   // Inserts n packed keys (a key already there keeps its slot).
   Status Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n);
+  // Empties the table and gives slot s the key keys[s] for s < n (a table saved as its slots' keys,
+  // so the pool's data goes back where it was): DataLoss when a key is not a brick's or repeats,
+  // OutOfRange when n exceeds the pool.
+  Status Restore(Context& ctx, const Buffer<uint32_t>& keys, size_t n);
   // The slots of n packed keys (-1: not in the table).
   Status Lookup(Context& ctx, const Buffer<uint32_t>& keys, size_t n, Buffer<int32_t>& out) const;
   // Keeps the bricks whose slot s has keep[s] != 0 (keep: one flag per pool slot), renumbered
