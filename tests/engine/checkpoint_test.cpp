@@ -142,6 +142,8 @@ std::string AsOlderVersion(const std::string& current, uint32_t version, size_t 
   const size_t header = 8 + 8 + 32;
   std::string payload = current.substr(header, current.size() - header - dropped_vectors * sizeof(uint64_t));
   std::memcpy(payload.data(), &version, sizeof(version));
+  // Before version 4 no sparse flag followed the deformation flag.
+  if (version < 4) payload.erase(4 + 4 + sizeof(VdVolume) + 1, 1);
   std::string out = current.substr(0, 8);
   const uint64_t size = payload.size();
   out.append(reinterpret_cast<const char*>(&size), sizeof(size));
@@ -175,17 +177,20 @@ TEST(CheckpointTest, TrackedMeshAndLinksRoundTripAndOlderFilesStillLoad) {
   EngineState plain = SmallState(5);
   plain.links.clear();
   const std::string current = EncodeCheckpoint(plain);
-  // Version 2: no links array; version 1: no tracked arrays either.
-  for (auto [version, dropped] : {std::pair<uint32_t, size_t>{2, 1}, std::pair<uint32_t, size_t>{1, 4}}) {
+  // Version 3: no sparse flag; version 2: no links array either; version 1: no tracked arrays.
+  for (auto [version, dropped] :
+       {std::pair<uint32_t, size_t>{3, 0}, std::pair<uint32_t, size_t>{2, 1}, std::pair<uint32_t, size_t>{1, 4}}) {
     auto old = DecodeCheckpoint(AsOlderVersion(current, version, dropped));
     ASSERT_TRUE(old.ok()) << version << ": " << old.status().ToString();
     ExpectSame(plain, *old);
-    EXPECT_TRUE(old->tracked.triangles.empty());
-    EXPECT_TRUE(old->links.empty());
+    if (version < 3) {
+      EXPECT_TRUE(old->tracked.triangles.empty());
+      EXPECT_TRUE(old->links.empty());
+    }
   }
   // A newer version is refused by name.
-  const std::string v4 = AsOlderVersion(current, 4, 0);
-  EXPECT_NE(DecodeCheckpoint(v4).status().message().find("version 4"), std::string::npos);
+  const std::string v5 = AsOlderVersion(current, 5, 0);
+  EXPECT_NE(DecodeCheckpoint(v5).status().message().find("version 5"), std::string::npos);
 }
 
 // The tube (40-frame take) and two engines at 6 mm: one runs on, the other resumes from its
