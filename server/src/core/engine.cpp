@@ -76,7 +76,7 @@ void EngineParams::Bind(FlagParser* f) {
                "non-rigid solve");
   f->AddSwitch("sparse-volume", &sparse_volume,
                "Store the volume as 8^3 bricks allocated where the depth reaches: no box fixed at the first frame, "
-               "--max-grid-mb is the brick pool (needs --rigid-only for now; no checkpoints yet)");
+               "--max-grid-mb is the brick pool (needs --rigid-only for now)");
   f->Add("k-min", &k_min, "Grid points are fused non-rigidly only after taking part in this many optimisations");
   f->Add("field-rigid-threshold", &field_rigid_threshold,
          "Move the field's rigid part into the camera pose once it displaces the active points by this RMS, metres "

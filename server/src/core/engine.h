@@ -72,8 +72,7 @@ struct EngineParams {
   bool rigid_only = false;
   // The volume as 8^3 bricks allocated where each frame's truncation band reaches (issue 17;
   // docs/SPARSE_VOLUME.md): no box fixed at the first frame, memory in proportion to the surface,
-  // max_grid_mb the brick pool. Rigid-only for now (the field is not on bricks yet); checkpoints
-  // of it are not built yet either.
+  // max_grid_mb the brick pool. Rigid-only for now (the field is not on bricks yet).
   bool sparse_volume = false;
   // Non-rigid tracking: outer iterations (re-rendering and new correspondences) per frame. With
   // the coarse-to-fine solver one reaches the quality two did on one level at half the time.
