@@ -42,12 +42,22 @@ __kernel void vd_brick_table_lookup(__global const uint* in, __global const uint
 
 /* One work item per entry of the old table: kept bricks go into the new one, renumbered. */
 __kernel void vd_brick_table_compact(__global const uint* old_keys, __global const int* old_slots,
-                                     __global const uint* keep, __global const uint* offsets, __global uint* keys,
-                                     __global int* slots, __global uint* slot_keys, uint capacity,
+                                     __global const uint* keep, __global const uint* offsets,
+                                     __global const uint* old_stamp, __global uint* keys, __global int* slots,
+                                     __global uint* slot_keys, __global uint* stamp, uint capacity,
                                      __global uint* counters, int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  vd_brick_reinsert((uint)i, old_keys, old_slots, keep, offsets, keys, slots, slot_keys, capacity, counters);
+  vd_brick_reinsert((uint)i, old_keys, old_slots, keep, offsets, old_stamp, keys, slots, slot_keys, stamp, capacity,
+                    counters);
+}
+
+/* One work item per voxel lane (512): the kept bricks' voxels move to their compacted slots. */
+__kernel void vd_brick_pool_move(__global const uint* keep, __global const uint* offsets, int used,
+                                 __global float* tsdf, __global float* weight, __global uint* color, int vd_items) {
+  int v = get_global_id(0);
+  if (v >= vd_items) return;
+  vd_brick_pool_move_lane(v, keep, offsets, used, tsdf, weight, color);
 }
 
 /* One work item per depth tile: lists the bricks its band reaches, once each per frame. */

@@ -78,5 +78,53 @@ TEST(SparseVolumeTest, AFullPoolIsReportedAndTheServerGoesOn) {
   EXPECT_TRUE(state.Validate().ok());
 }
 
+// A pool with room for the first view but not for all the camera sees: the bricks seen longest ago
+// are dropped to make room, tracking and the current surface do not suffer, and the status says so.
+TEST(SparseVolumeTest, AFullPoolDropsTheBricksSeenLongestAgo) {
+  if (!test::HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  SyntheticOptions so;
+  so.noise = true;
+  auto scene = MakeSyntheticScene("rigid", so);
+  ASSERT_TRUE(scene.ok()) << scene.status().ToString();
+  EngineParams p = RigidRun(true).params;
+  // 571 bricks: the first view needs 531 at 6 mm, the whole take about 600.
+  p.max_grid_mb = 3.6;
+  auto engine = Engine::Create(p, "");
+  ASSERT_TRUE(engine.ok()) << engine.status().ToString();
+  FrameResult last;
+  int evictions = 0, k_last = 0;
+  for (int k = 0; k < (*scene)->num_frames(); k += 2) {
+    auto r = (*engine)->Process((*scene)->Render(k));
+    ASSERT_TRUE(r.ok()) << r.status().ToString();
+    ASSERT_TRUE(r->tracking_ok) << "frame " << k << ": " << r->tracking_message;
+    evictions += r->bricks_evicted > 0;
+    EXPECT_LE(r->bricks_used, r->bricks_pool);
+    if (r->bricks_evicted > 0) {
+      EXPECT_EQ(r->bricks_failed, 0) << "after dropping old bricks the frame's own fit";
+      EXPECT_NE(BrickPoolNote(*r).find("dropped"), std::string::npos) << BrickPoolNote(*r);
+    }
+    last = std::move(r).value();
+    k_last = k;
+  }
+  std::printf("a pool of %lld bricks: %d evictions, %lld bricks dropped in all\n",
+              static_cast<long long>(last.bricks_pool), evictions, static_cast<long long>(last.bricks_evicted_total));
+  EXPECT_GE(evictions, 1);
+  EXPECT_GT(last.bricks_evicted_total, 0);
+  // The surface in view is whole and where it belongs.
+  const MeshDistance truth((*scene)->GroundTruthMesh(k_last));
+  const TriangleMesh& m = last.live_mesh;
+  ASSERT_GT(m.num_vertices(), 10000u);
+  double sum = 0;
+  size_t n = 0;
+  for (size_t i = 0; i < m.num_vertices(); ++i) {
+    const float d = truth.Closest(test::V(m, i)).distance;
+    if (d > 0.02f) continue;  // beyond the object (a floor it stands on)
+    sum += d;
+    ++n;
+  }
+  ASSERT_GT(n, m.num_vertices() / 2);
+  EXPECT_LT(1000 * sum / double(n), 1.0);
+}
+
 }  // namespace
 }  // namespace vd

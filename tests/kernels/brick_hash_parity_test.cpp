@@ -349,6 +349,85 @@ TEST(BrickHashParityTest, FusionIntoThePoolMatchesTheCpuAndTheDenseGrid) {
   EXPECT_LE(differ, n / 10000) << differ << " of " << n;  // measured: 0 of 493568
 }
 
+// Eviction: the bricks the last listing did not reach go first, oldest listing first; the pool's
+// voxels move with the table (against the CPU reference of the move), and the freed slots are at
+// rest again.
+TEST(BrickHashParityTest, EvictionDropsTheBricksListedLongestAgoAndMovesThePool) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  test::FusedBricks f;
+  test::FuseSphere(ctx, 1, &f);
+  if (HasFatalFailure()) return;
+  const uint32_t used = f.counts.used;
+  const size_t n = size_t(used) * VD_BRICK_VOXELS;
+  // Every brick was listed by the last frame: nothing may go.
+  auto none = f.table->EvictOldest(ops, *f.pool, 10);
+  ASSERT_TRUE(none.ok());
+  EXPECT_EQ(*none, 0u);
+  // A second listing of the left half of the image only: the bricks only the right half reaches
+  // are now the oldest.
+  std::vector<float> left = f.depth;
+  for (int i = 0; i < f.cam.width * f.cam.height; ++i)
+    if (i % f.cam.width >= f.cam.width / 2) left[i] = 0.f;
+  ocl::Buffer<float> dleft = test::ToDevice(ctx, left);
+  ASSERT_TRUE(f.table->ListVisible(*ctx, dleft, f.cam, f.cam_to_world, f.vol.truncation, f.brick).ok());
+  auto listed = f.table->Counts(*ctx);
+  ASSERT_TRUE(listed.ok());
+  std::vector<int32_t> seen = test::FromDevice(ctx, f.table->visible(), listed->visible);
+  ASSERT_LT(listed->visible, used - 50);
+  const cpu::BrickTable before = f.Reference(ctx);
+  std::set<uint32_t> seen_keys;
+  for (int32_t s : seen) seen_keys.insert(before.slot_keys[s]);
+  const std::vector<float> tsdf = test::FromDevice(ctx, f.pool->tsdf, n),
+                           weight = test::FromDevice(ctx, f.pool->weight, n);
+  const std::vector<uint32_t> color = test::FromDevice(ctx, f.pool->color, n);
+  std::vector<uint32_t> stamps = test::FromDevice(ctx, f.table->stamps(), used);
+
+  auto dropped = f.table->EvictOldest(ops, *f.pool, 40);
+  ASSERT_TRUE(dropped.ok()) << dropped.status().ToString();
+  ASSERT_EQ(*dropped, 40u);
+  auto after = f.table->Counts(*ctx);
+  ASSERT_TRUE(after.ok());
+  EXPECT_EQ(after->used, used - 40);
+  const std::map<uint32_t, int32_t> kept = Contents(ctx, *f.table);
+  ASSERT_EQ(kept.size(), used - 40);
+  // The 40 dropped are the first 40 unseen slots in slot order (all unseen ones share one stamp).
+  std::vector<uint32_t> keep(f.table->pool(), 0u);
+  std::fill(keep.begin(), keep.begin() + used, 1u);
+  int chosen = 0;
+  for (uint32_t s = 0; s < used && chosen < 40; ++s)
+    if (!seen_keys.count(before.slot_keys[s])) keep[s] = 0u, ++chosen;
+  for (uint32_t s = 0; s < used; ++s) EXPECT_EQ(kept.count(before.slot_keys[s]) == 1, keep[s] == 1u) << s;
+  for (uint32_t k : seen_keys) EXPECT_TRUE(kept.count(k)) << "a brick the last frame listed was dropped";
+  // Table against the CPU's compaction (stamps moved too), pool against the CPU's move.
+  cpu::BrickTable ref_before = before;
+  ref_before.stamp = stamps;
+  ref_before.stamp.resize(f.table->pool(), 0u);
+  const cpu::BrickTable ref = cpu::BrickCompact(ref_before, keep.data());
+  EXPECT_EQ(kept, Contents(ref.keys, ref.slots));
+  EXPECT_EQ(test::FromDevice(ctx, f.table->stamps(), f.table->pool()), ref.stamp);
+  std::vector<float> rt = tsdf, rw = weight;
+  std::vector<uint32_t> rc = color;
+  cpu::BrickPoolMove(keep.data(), used, rt.data(), rw.data(), rc.data());
+  const size_t n_kept = size_t(used - 40) * VD_BRICK_VOXELS;
+  const std::vector<float> t_after = test::FromDevice(ctx, f.pool->tsdf, n),
+                           w_after = test::FromDevice(ctx, f.pool->weight, n);
+  EXPECT_TRUE(std::equal(t_after.begin(), t_after.begin() + n_kept, rt.begin()));
+  EXPECT_TRUE(std::equal(w_after.begin(), w_after.begin() + n_kept, rw.begin()));
+  EXPECT_EQ(test::FromDevice(ctx, f.pool->color, n_kept), std::vector<uint32_t>(rc.begin(), rc.begin() + n_kept));
+  // Each kept brick's voxels are the ones it had, now at its new slot; the freed slots are at rest.
+  for (const auto& [k, s] : kept) {
+    const uint32_t old =
+        uint32_t(std::find(before.slot_keys.begin(), before.slot_keys.end(), k) - before.slot_keys.begin());
+    ASSERT_TRUE(std::equal(t_after.begin() + size_t(s) * VD_BRICK_VOXELS,
+                           t_after.begin() + size_t(s + 1) * VD_BRICK_VOXELS,
+                           tsdf.begin() + size_t(old) * VD_BRICK_VOXELS));
+  }
+  EXPECT_TRUE(std::all_of(t_after.begin() + n_kept, t_after.end(), [](float v) { return v == 1.f; }));
+  EXPECT_TRUE(std::all_of(w_after.begin() + n_kept, w_after.end(), [](float v) { return v == 0.f; }));
+}
+
 TEST(BrickHashParityTest, BadArgumentsAreRefused) {
   VD_REQUIRE_OCL(ctx);
   EXPECT_FALSE(ocl::BrickTable::Create(*ctx, 0).ok());

@@ -274,8 +274,9 @@ VD_INLINE int vd_brick_take_tile(int mode, int tile, VD_GLOBAL const float* dept
  * in the new slot_keys. */
 VD_INLINE void vd_brick_reinsert(vd_uint entry, VD_GLOBAL const vd_uint* old_keys, VD_GLOBAL const int* old_slots,
                                  VD_GLOBAL const vd_uint* keep, VD_GLOBAL const vd_uint* offsets,
-                                 VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys,
-                                 vd_uint capacity, VD_GLOBAL vd_uint* counters) {
+                                 VD_GLOBAL const vd_uint* old_stamp, VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots,
+                                 VD_GLOBAL vd_uint* slot_keys, VD_GLOBAL vd_uint* stamp, vd_uint capacity,
+                                 VD_GLOBAL vd_uint* counters) {
   vd_uint key = old_keys[entry];
   int slot = old_slots[entry];
   if (key == VD_BRICK_EMPTY || slot < 0 || !keep[slot]) return;
@@ -287,6 +288,8 @@ VD_INLINE void vd_brick_reinsert(vd_uint entry, VD_GLOBAL const vd_uint* old_key
   }
   slots[h] = (int)offsets[slot];
   slot_keys[offsets[slot]] = key;
+  /* The frame it was last listed in moves with it (eviction drops the oldest). */
+  stamp[offsets[slot]] = old_stamp[slot];
 }
 
 #endif /* VD_BRICK_HASH_H */

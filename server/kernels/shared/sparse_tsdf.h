@@ -39,4 +39,20 @@ VD_INLINE void vd_sparse_integrate_row(int slot, int r, VD_GLOBAL const vd_uint*
     vd_tsdf_integrate_point(tsdf, weight, color, base + x, p0 + step * (float)x, vol, cam, depth, rgba);
 }
 
+/* Moves voxel v (0..511) of every kept brick of a compaction (keep: one flag per slot, offsets:
+ * their exclusive prefix sum) from its old slot s to offsets[s] <= s. Slots go in increasing order,
+ * so a destination has already given up its own voxel (moved, or dropped) before it is written:
+ * one work item per voxel lane may move all the bricks in place. */
+VD_INLINE void vd_brick_pool_move_lane(int v, VD_GLOBAL const vd_uint* keep, VD_GLOBAL const vd_uint* offsets, int used,
+                                       VD_GLOBAL float* tsdf, VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color) {
+  for (int s = 0; s < used; ++s) {
+    int d = (int)offsets[s];
+    if (!keep[s] || d == s) continue;
+    int from = s * VD_BRICK_VOXELS + v, to = d * VD_BRICK_VOXELS + v;
+    tsdf[to] = tsdf[from];
+    weight[to] = weight[from];
+    color[to] = color[from];
+  }
+}
+
 #endif /* VD_SPARSE_TSDF_H */

@@ -900,6 +900,9 @@ std::string BrickPoolNote(const FrameResult& r) {
   std::snprintf(note, sizeof(note), "bricks %lld of %lld (%.0f %%)", static_cast<long long>(r.bricks_used),
                 static_cast<long long>(r.bricks_pool), r.bricks_pool > 0 ? 100.0 * r.bricks_used / r.bricks_pool : 0.0);
   std::string out = note;
+  if (r.bricks_evicted_total > 0)
+    out += "; " + std::to_string(r.bricks_evicted_total) + " bricks seen longest ago dropped to make room" +
+           (r.bricks_evicted > 0 ? " (" + std::to_string(r.bricks_evicted) + " this frame)" : "");
   if (r.bricks_failed > 0)
     out += "; BRICK POOL FULL: " + std::to_string(r.bricks_failed) +
            " bricks of this frame's surface were not fused (raise --max-grid-mb)";
@@ -915,6 +918,7 @@ Status Engine::CreateBricks() {
   volume_ = DeviceVolume();
   volume_.vol = vol;
   bricks_failed_before_ = 0;
+  bricks_evicted_ = 0;
   if (bricks_ && pool_) {
     // A new model in the same table and pool: every brick back at rest.
     VD_RETURN_IF_ERROR(bricks_->Clear(*ctx_));
@@ -939,9 +943,25 @@ Status Engine::IntegrateBricks(FrameResult* result) {
   const VdVolume& vol = volume_.vol;
   const float brick = VD_BRICK * vol.voxel_size;
   const VdPose cam_to_world = ToVdPose(pose_);
-  VD_RETURN_IF_ERROR(bricks_->AllocateFromDepth(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
-  VD_RETURN_IF_ERROR(bricks_->ListVisible(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
-  VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, bricks_->Counts(*ctx_));
+  auto allocate = [&]() -> StatusOr<ocl::BrickCounts> {
+    VD_RETURN_IF_ERROR(bricks_->AllocateFromDepth(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
+    VD_RETURN_IF_ERROR(bricks_->ListVisible(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
+    return bricks_->Counts(*ctx_);
+  };
+  VD_ASSIGN_OR_RETURN(ocl::BrickCounts counts, allocate());
+  if (counts.failed > bricks_failed_before_) {
+    // The pool is full: the bricks seen longest ago make room (a quarter of the pool at once, so this
+    // stays rare), then the frame's band is allocated again.
+    VD_ASSIGN_OR_RETURN(const uint32_t dropped,
+                        bricks_->EvictOldest(ops_, *pool_, std::max(bricks_->pool() / 4, counts.failed)));
+    if (dropped > 0) {
+      result->bricks_evicted = dropped;
+      bricks_evicted_ += dropped;
+      VD_LOG_INFO << "brick pool full (" << bricks_->pool() << " bricks, --max-grid-mb " << params_.max_grid_mb
+                  << "): dropped the " << dropped << " bricks seen longest ago";
+      VD_ASSIGN_OR_RETURN(counts, allocate());
+    }
+  }
   // The voxels follow the bricks handed out, half as many again ahead so growth stays rare.
   if (counts.used > pool_->slots)
     VD_RETURN_IF_ERROR(pool_->Grow(*ctx_, std::min(bricks_->pool(), counts.used + counts.used / 2)));
@@ -949,10 +969,13 @@ Status Engine::IntegrateBricks(FrameResult* result) {
       ocl::IntegrateBricks(*ctx_, *bricks_, *pool_, vol, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
   result->bricks_used = counts.used;
   result->bricks_pool = bricks_->pool();
-  result->bricks_failed = int64_t(counts.failed) - int64_t(bricks_failed_before_);
-  if (result->bricks_failed > 0 && bricks_failed_before_ == 0)
+  result->bricks_evicted_total = bricks_evicted_;
+  // Compaction restarts the table's failure count.
+  const uint32_t before = result->bricks_evicted > 0 ? 0u : bricks_failed_before_;
+  result->bricks_failed = int64_t(counts.failed) - int64_t(before);
+  if (result->bricks_failed > 0)
     VD_LOG_WARNING << "the brick pool is full (" << counts.used << " bricks, --max-grid-mb " << params_.max_grid_mb
-                   << "): " << result->bricks_failed << " bricks of this frame's surface were not fused";
+                   << ") with this frame's own surface: " << result->bricks_failed << " of its bricks were not fused";
   bricks_failed_before_ = counts.failed;
   return Status::Ok();
 }

@@ -160,10 +160,14 @@ struct FrameResult {
   float icp_rmse = 0.f;
   int64_t active_voxels = 0;
   // Sparse volume: bricks in the pool, the pool's size, and the bricks this frame's band needed
-  // but found no room for (nonzero: the pool is full and that surface was not fused).
+  // but found no room for (nonzero: the pool is full with this frame's own surface, which was not
+  // all fused). A full pool first drops the bricks seen longest ago: how many this frame, and since
+  // the model began.
   int64_t bricks_used = 0;
   int64_t bricks_pool = 0;
   int64_t bricks_failed = 0;
+  int64_t bricks_evicted = 0;
+  int64_t bricks_evicted_total = 0;
   // Non-rigid solve of this frame: constraint rows (dense pixels + 3 per sparse match), E_total before and after (0 when rigid).
   int dense_correspondences = 0;
   double energy_initial = 0.0;
@@ -269,6 +273,8 @@ class Engine {
   static constexpr uint32_t kInitialBricks = 1024;
   // Failed brick inserts counted before this frame (the table's counter only grows).
   uint32_t bricks_failed_before_ = 0;
+  // Bricks dropped to make room since the model began.
+  int64_t bricks_evicted_ = 0;
   // Creates the table and pool within max_grid_mb.
   Status CreateBricks();
   Status IntegrateBricks(FrameResult* result);

@@ -12,7 +12,8 @@ BrickTable::BrickTable(uint32_t capacity_, uint32_t pool_)
       pool(pool_),
       keys(capacity_, VD_BRICK_EMPTY),
       slots(capacity_, -1),
-      slot_keys(pool_, VD_BRICK_EMPTY) {}
+      slot_keys(pool_, VD_BRICK_EMPTY),
+      stamp(pool_, 0u) {}
 
 void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
                      BrickTable* t) {
@@ -47,9 +48,20 @@ BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep) {
   BrickTable t(old.capacity, old.pool);
   t.counters[VD_BRICK_COUNT_TAKEN] = kept;
   for (uint32_t e = 0; e < old.capacity; ++e)
-    vd_brick_reinsert(e, old.keys.data(), old.slots.data(), keep, offsets.data(), t.keys.data(), t.slots.data(),
-                      t.slot_keys.data(), t.capacity, t.counters);
+    vd_brick_reinsert(e, old.keys.data(), old.slots.data(), keep, offsets.data(), old.stamp.data(), t.keys.data(),
+                      t.slots.data(), t.slot_keys.data(), t.stamp.data(), t.capacity, t.counters);
   return t;
+}
+
+void BrickPoolMove(const uint32_t* keep, uint32_t used, float* tsdf, float* weight, uint32_t* color) {
+  std::vector<uint32_t> offsets(used);
+  uint32_t kept = 0;
+  for (uint32_t s = 0; s < used; ++s) {
+    offsets[s] = kept;
+    kept += keep[s] ? 1u : 0u;
+  }
+  for (int v = 0; v < VD_BRICK_VOXELS; ++v)
+    vd_brick_pool_move_lane(v, keep, offsets.data(), int(used), tsdf, weight, color);
 }
 
 std::vector<int32_t> BrickListVisible(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation,

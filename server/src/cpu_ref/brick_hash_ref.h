@@ -14,6 +14,8 @@ struct BrickTable {
   std::vector<uint32_t> keys;
   std::vector<int32_t> slots;
   std::vector<uint32_t> slot_keys;
+  // The frame each slot was last listed in (moved by compaction).
+  std::vector<uint32_t> stamp;
   uint32_t counters[VD_BRICK_COUNTERS] = {};
   // An empty table of `capacity` entries (a power of two) for a pool of `pool` bricks.
   BrickTable(uint32_t capacity, uint32_t pool);
@@ -36,6 +38,9 @@ void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visibl
                      uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
                      const uint32_t* rgba);
 
+// Moves the kept bricks' voxels (512 per slot of tsdf, weight, colour) to their compacted slots, as
+// the device's vd_brick_pool_move does, for the first `used` slots.
+void BrickPoolMove(const uint32_t* keep, uint32_t used, float* tsdf, float* weight, uint32_t* color);
 // The 27 neighbour slots of each of the first `used` slots (VD_BRICK_NEIGHBOURS per slot).
 std::vector<int32_t> BrickNeighbours(const BrickTable& table, uint32_t used);
 // Marching cubes over the first `used` slots of a pool (shared/sparse_mesh.h), in the device's

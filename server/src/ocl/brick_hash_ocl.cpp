@@ -1,7 +1,9 @@
 // The brick table's launchers (ocl/brick_hash_ocl.h).
 #include "ocl/brick_hash_ocl.h"
 
+#include <algorithm>
 #include <utility>
+#include <vector>
 
 #include "ocl/device_ops.h"
 
@@ -83,11 +85,12 @@ Status BrickTable::Lookup(Context& ctx, const Buffer<uint32_t>& keys, size_t n, 
   return kBrickLookup(ctx, n, keys, keys_, slots_, capacity_, out);
 }
 
-Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep) {
+Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep, BrickPool* pool) {
   Context& ctx = ops.ctx();
   if (keep.size() < pool_) return InvalidArgument("compaction needs one keep flag per pool slot");
   // Only the slots handed out hold bricks: the prefix sum runs over them.
   VD_ASSIGN_OR_RETURN(const BrickCounts before, Counts(ctx));
+  if (pool && pool->slots < before.used) return InvalidArgument("the brick pool holds fewer bricks than the table");
   VD_RETURN_IF_ERROR(ctx.Reserve(&offsets_, size_t(pool_) + 1));
   uint32_t kept = 0;
   if (before.used > 0) VD_RETURN_IF_ERROR(ops.ScanExclusive(keep, before.used, offsets_, &kept));
@@ -97,16 +100,49 @@ Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep) {
   VD_RETURN_IF_ERROR(ctx.Fill(new_slots_, int32_t(-1), capacity_));
   VD_RETURN_IF_ERROR(ctx.Reserve(&new_slot_keys_, pool_));
   VD_RETURN_IF_ERROR(ctx.Fill(new_slot_keys_, VD_BRICK_EMPTY, pool_));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&new_stamp_, pool_));
+  VD_RETURN_IF_ERROR(ctx.Fill(new_stamp_, 0u, pool_));
   const uint32_t counts[VD_BRICK_COUNTERS] = {kept, 0u, 0u};
-  // Slots are renumbered: no list or stamp of the old numbering stays valid.
-  VD_RETURN_IF_ERROR(ctx.Fill(stamp_, 0u, pool_));
   VD_RETURN_IF_ERROR(ctx.Upload(counters_, counts, VD_BRICK_COUNTERS));
-  VD_RETURN_IF_ERROR(kBrickCompact(ctx, capacity_, keys_, slots_, keep, offsets_, new_keys_, new_slots_, new_slot_keys_,
-                                   capacity_, counters_));
+  VD_RETURN_IF_ERROR(kBrickCompact(ctx, capacity_, keys_, slots_, keep, offsets_, stamp_, new_keys_, new_slots_,
+                                   new_slot_keys_, new_stamp_, capacity_, counters_));
   std::swap(keys_, new_keys_);
   std::swap(slots_, new_slots_);
   std::swap(slot_keys_, new_slot_keys_);
+  std::swap(stamp_, new_stamp_);
+  if (pool && before.used > 0) {
+    VD_RETURN_IF_ERROR(kBrickPoolMove(ctx, VD_BRICK_VOXELS, keep, offsets_, int32_t(before.used), pool->tsdf,
+                                      pool->weight, pool->color));
+    // Slots kept..used-1 are free again: new bricks there start at rest.
+    const size_t from = size_t(kept) * VD_BRICK_VOXELS, n = size_t(before.used - kept) * VD_BRICK_VOXELS;
+    VD_RETURN_IF_ERROR(ctx.Fill(pool->tsdf, 1.0f, n, from));
+    VD_RETURN_IF_ERROR(ctx.Fill(pool->weight, 0.0f, n, from));
+    VD_RETURN_IF_ERROR(ctx.Fill(pool->color, 0u, n, from));
+  }
   return Status::Ok();
+}
+
+StatusOr<uint32_t> BrickTable::EvictOldest(DeviceOps& ops, BrickPool& pool, uint32_t count) {
+  Context& ctx = ops.ctx();
+  VD_ASSIGN_OR_RETURN(const BrickCounts counts, Counts(ctx));
+  if (counts.used == 0 || count == 0) return 0u;
+  std::vector<uint32_t> stamps(counts.used);
+  VD_RETURN_IF_ERROR(ctx.Download(stamp_, stamps.data(), counts.used));
+  // Candidates: every brick the last listing did not reach, oldest listing first (slot order
+  // among equals, so the choice is deterministic).
+  std::vector<uint32_t> order;
+  for (uint32_t s = 0; s < counts.used; ++s)
+    if (stamps[s] != frame_ || frame_ == 0) order.push_back(s);
+  const size_t drop = std::min<size_t>(count, order.size());
+  if (drop == 0) return 0u;
+  std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return stamps[a] < stamps[b]; });
+  std::vector<uint32_t> keep(pool_, 0u);
+  std::fill(keep.begin(), keep.begin() + counts.used, 1u);
+  for (size_t i = 0; i < drop; ++i) keep[order[i]] = 0u;
+  VD_RETURN_IF_ERROR(ctx.Reserve(&keep_, pool_));
+  VD_RETURN_IF_ERROR(ctx.Upload(keep_, keep.data(), pool_));
+  VD_RETURN_IF_ERROR(Compact(ops, keep_, &pool));
+  return uint32_t(drop);
 }
 
 StatusOr<BrickCounts> BrickTable::Counts(Context& ctx) const {

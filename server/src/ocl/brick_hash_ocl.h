@@ -31,11 +31,15 @@ inline constexpr Kernel<void(const Buffer<uint32_t>& in, const Buffer<uint32_t>&
                              uint32_t capacity, Buffer<int32_t>& out)>
     kBrickLookup{"vd_brick_table_lookup"};
 // One item per entry of the old table.
-inline constexpr Kernel<void(const Buffer<uint32_t>& old_keys, const Buffer<int32_t>& old_slots,
-                             const Buffer<uint32_t>& keep, const Buffer<uint32_t>& offsets, Buffer<uint32_t>& keys,
-                             Buffer<int32_t>& slots, Buffer<uint32_t>& slot_keys, uint32_t capacity,
-                             Buffer<uint32_t>& counters)>
+inline constexpr Kernel<void(
+    const Buffer<uint32_t>& old_keys, const Buffer<int32_t>& old_slots, const Buffer<uint32_t>& keep,
+    const Buffer<uint32_t>& offsets, const Buffer<uint32_t>& old_stamp, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
+    Buffer<uint32_t>& slot_keys, Buffer<uint32_t>& stamp, uint32_t capacity, Buffer<uint32_t>& counters)>
     kBrickCompact{"vd_brick_table_compact"};
+// One item per voxel lane (VD_BRICK_VOXELS).
+inline constexpr Kernel<void(const Buffer<uint32_t>& keep, const Buffer<uint32_t>& offsets, int32_t used,
+                             Buffer<float>& tsdf, Buffer<float>& weight, Buffer<uint32_t>& color)>
+    kBrickPoolMove{"vd_brick_pool_move"};
 // One item per depth tile (the table is only read).
 inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation,
                              float brick_size, Buffer<uint32_t>& keys, Buffer<int32_t>& slots, uint32_t capacity,
@@ -52,6 +56,8 @@ inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32
 inline constexpr Kernel<void(const Buffer<uint32_t>& slot_keys, const Buffer<uint32_t>& keys,
                              const Buffer<int32_t>& slots, uint32_t capacity, Buffer<int32_t>& nbr)>
     kBrickNeighbours{"vd_brick_neighbours"};
+
+struct BrickPool;
 
 // What the inserting kernels counted since the table was cleared.
 struct BrickCounts {
@@ -96,8 +102,17 @@ class BrickTable {
   // The slots of n packed keys (-1: not in the table).
   Status Lookup(Context& ctx, const Buffer<uint32_t>& keys, size_t n, Buffer<int32_t>& out) const;
   // Keeps the bricks whose slot s has keep[s] != 0 (keep: one flag per pool slot), renumbered
-  // 0..kept-1 in the order of their old slots (the pool's data moves by the same map).
-  Status Compact(DeviceOps& ops, const Buffer<uint32_t>& keep);
+  // 0..kept-1 in the order of their old slots, with the frame each was last listed in; `pool`,
+  // when given, moves its voxels by the same map and puts the freed slots back at rest.
+  Status Compact(DeviceOps& ops, const Buffer<uint32_t>& keep, BrickPool* pool = nullptr);
+  // Drops the bricks listed longest ago (never one listed by the last ListVisible), at most
+  // `count` of them, moving `pool` with the table (Compact); returns how many were dropped. The
+  // frame numbers of ListVisible order them.
+  StatusOr<uint32_t> EvictOldest(DeviceOps& ops, BrickPool& pool, uint32_t count);
+  // The frame number the last ListVisible stamped its bricks with.
+  uint32_t frame() const { return frame_; }
+  // The frame each slot's brick was last listed in (0: never).
+  const Buffer<uint32_t>& stamps() const { return stamp_; }
   StatusOr<BrickCounts> Counts(Context& ctx) const;
   // The slots of the 27 bricks around each of the first `used` slots' bricks (shared/sparse_mesh.h:
   // VD_BRICK_NEIGHBOURS per slot, -1 where none), for the passes that read across brick faces.
@@ -113,7 +128,9 @@ class BrickTable {
   // VD_BRICK_NEIGHBOURS slots per slot in use (BuildNeighbours).
   Buffer<int32_t> neighbours_;
   // Compaction scratch: the prefix sum of keep, and the new table.
-  Buffer<uint32_t> offsets_, new_keys_, new_slot_keys_;
+  Buffer<uint32_t> offsets_, new_keys_, new_slot_keys_, new_stamp_;
+  // EvictOldest's keep flags.
+  Buffer<uint32_t> keep_;
   Buffer<int32_t> new_slots_;
 };
 
