@@ -71,15 +71,96 @@ __kernel void vd_brick_table_list(__global const float* depth, VdCamera cam, VdP
                      stamp, frame, visible, counters);
 }
 
-/* One work item per row (8 voxels along x) of the listed bricks: rigid fusion of the depth frame. */
+/* One work item per depth tile: allocates the bricks its band reaches and lists their table entries
+ * once per frame (entry_stamp: one per table entry). */
+__kernel void vd_brick_table_alloc_list(__global const float* depth, VdCamera cam, VdPose cam_to_world,
+                                        float truncation, float brick_size, __global uint* keys, __global int* slots,
+                                        __global uint* slot_keys, uint capacity, uint pool, __global uint* entry_stamp,
+                                        uint frame, __global int* visible, __global uint* counters, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  vd_brick_take_tile(VD_BRICK_ALLOCATE_LIST, i, depth, cam, cam_to_world, truncation, brick_size, keys, slots,
+                     slot_keys, capacity, pool, entry_stamp, frame, visible, counters);
+}
+
+/* One work item per listed entry: its slot, stamped with the frame. */
+__kernel void vd_brick_entry_slots(__global int* visible, __global const int* slots, __global uint* slot_stamp,
+                                   uint frame, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  vd_brick_entry_slot(i, visible, slots, slot_stamp, frame);
+}
+
+/* Rigid fusion of the depth frame into the listed bricks, VD_LANES consecutive voxels of a brick per
+ * work item (a kLaned launch; 512 is a multiple of every lane count, so the lanes share a brick).
+ * With one lane (a GPU) it is vd_sparse_integrate_row's per-voxel update. With more, the same
+ * arithmetic in the same order runs on all lanes at once (the rows' first voxels placed as the rows
+ * are, then p0 + step * x): the projection, the depth gather, the band test and the TSDF and weight
+ * update as vectors, the colour per lane inside the band. */
 __kernel void vd_sparse_integrate(__global const int* visible, __global const uint* slot_keys, __global float* tsdf,
                                   __global float* weight, __global uint* color, VdVolume vol, VdCamera cam,
                                   VdPose world_to_cam, __global const float* depth, __global const uint* rgba,
                                   int vd_items) {
-  int i = get_global_id(0);
-  if (i >= vd_items) return;
-  vd_sparse_integrate_row(visible[i / (VD_BRICK * VD_BRICK)], i % (VD_BRICK * VD_BRICK), slot_keys, tsdf, weight, color,
-                          vol, cam, world_to_cam, depth, rgba);
+  int base = (int)get_global_id(0) * VD_LANES;
+  if (base >= vd_items) return;
+  int slot = visible[base / VD_BRICK_VOXELS];
+  if (slot < 0) return; /* listed, but the pool had no room */
+  uint key = slot_keys[slot];
+  if (key == VD_BRICK_EMPTY) return;
+  int first = base % VD_BRICK_VOXELS;
+  int index0 = slot * VD_BRICK_VOXELS + first;
+#if VD_LANES == 1
+  int gx, gy, gz;
+  vd_brick_voxel(key, first - first % VD_BRICK, &gx, &gy, &gz);
+  vd_float4 p0 = vd_pose_apply(
+      world_to_cam, VD_F4(vol.voxel_size * (float)gx, vol.voxel_size * (float)gy, vol.voxel_size * (float)gz, 1.0f));
+  vd_float4 step = vd_pose_rotate(world_to_cam, VD_F4(vol.voxel_size, 0.0f, 0.0f, 0.0f));
+  vd_tsdf_integrate_point(tsdf, weight, color, index0, p0 + step * (float)(first % VD_BRICK), vol, cam, depth, rgba);
+#else
+  /* Each lane's row start (global grid coordinates) and its x within the row. */
+  float rx[VD_LANES], ry[VD_LANES], rz[VD_LANES], xs[VD_LANES];
+  for (int l = 0; l < VD_LANES; ++l) {
+    int gx, gy, gz, v = first + l;
+    vd_brick_voxel(key, v - v % VD_BRICK, &gx, &gy, &gz);
+    rx[l] = vol.voxel_size * (float)gx;
+    ry[l] = vol.voxel_size * (float)gy;
+    rz[l] = vol.voxel_size * (float)gz;
+    xs[l] = (float)(v % VD_BRICK);
+  }
+  vd_lf X = vd_lload(rx), Y = vd_lload(ry), Z = vd_lload(rz), xl = vd_lload(xs);
+  VdPose P = world_to_cam;
+  /* vd_pose_apply, then + step * x, component by component. */
+  vd_float4 step = vd_pose_rotate(P, VD_F4(vol.voxel_size, 0.0f, 0.0f, 0.0f));
+  vd_lf cx = P.r0.x * X + P.r0.y * Y + P.r0.z * Z + P.r0.w;
+  vd_lf cy = P.r1.x * X + P.r1.y * Y + P.r1.z * Z + P.r1.w;
+  vd_lf cz = P.r2.x * X + P.r2.y * Y + P.r2.z * Z + P.r2.w;
+  cx = cx + step.x * xl;
+  cy = cy + step.y * xl;
+  cz = cz + step.z * xl;
+  vd_li ahead = cz > 0.0f;
+  vd_lf z = vd_lsel((vd_lf)1.0f, cz, ahead);
+  vd_lf u = cam.fx * cx / z + cam.cx, vv = cam.fy * cy / z + cam.cy;
+  vd_lf fu = floor(u + 0.5f), fv = floor(vv + 0.5f);
+  vd_li inside = ahead & (fu >= 0.0f) & (fv >= 0.0f) & (fu < (float)cam.width) & (fv < (float)cam.height);
+  float du[VD_LANES], dv[VD_LANES], dd[VD_LANES];
+  int in[VD_LANES];
+  vd_lstore(fu, du);
+  vd_lstore(fv, dv);
+  vd_lstore(inside, in);
+  for (int l = 0; l < VD_LANES; ++l) dd[l] = in[l] ? depth[(int)dv[l] * cam.width + (int)du[l]] : 0.0f;
+  vd_lf d = vd_lload(dd);
+  vd_lf sdf = d - cz;
+  vd_li fuse = inside & (d > 0.0f) & (sdf >= -vol.truncation);
+  vd_lf f = fmin((vd_lf)1.0f, sdf / vol.truncation);
+  vd_lf w_old = vd_lload(weight + index0), t_old = vd_lload(tsdf + index0);
+  vd_lf w_new = w_old + 1.0f;
+  vd_lstore(vd_lsel(t_old, (t_old * w_old + f) / w_new, fuse), tsdf + index0);
+  vd_lstore(vd_lsel(w_old, fmin(w_new, (vd_lf)vol.max_weight), fuse), weight + index0);
+  int colour[VD_LANES];
+  vd_lstore(fuse & (fabs(sdf) < vol.truncation), colour);
+  for (int l = 0; l < VD_LANES; ++l)
+    if (colour[l]) vd_tsdf_fuse_color(color, index0 + l, rgba[(int)dv[l] * cam.width + (int)du[l]]);
+#endif
 }
 
 /* One work item per pool slot handed out: the slots of its brick's 27 neighbours

@@ -128,8 +128,7 @@ int Main(int argc, char** argv) {
     const auto t0 = std::chrono::steady_clock::now();
     if (sparse) {
       const VdPose cam_to_world = ToVdPose(world_to_cam.inverse());
-      Check(table->AllocateFromDepth(*ctx, *depth, cam, cam_to_world, brick_vol.truncation, VD_BRICK * voxel));
-      Check(table->ListVisible(*ctx, *depth, cam, cam_to_world, brick_vol.truncation, VD_BRICK * voxel));
+      Check(table->AllocateAndList(*ctx, *depth, cam, cam_to_world, brick_vol.truncation, VD_BRICK * voxel));
       Check(ocl::IntegrateBricks(*ctx, *table, *pool, brick_vol, cam, ToVdPose(world_to_cam), *depth, *rgba));
     } else {
       Check(ops.IntegrateTsdf(dv, cam, ToVdPose(world_to_cam), *depth, *rgba));

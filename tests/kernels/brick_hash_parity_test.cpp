@@ -236,6 +236,66 @@ TEST(BrickHashParityTest, AllocationFromDepthCoversTheTruncationBand) {
   }
 }
 
+// Allocation and listing in one walk: the same bricks as the two passes, each listed once, on the
+// device and the CPU; a second frame lists without allocating; a pool too small lists the bricks
+// it could not hold as -1.
+TEST(BrickHashParityTest, AllocationAndListingInOnePassMatchTheTwoPasses) {
+  VD_REQUIRE_OCL(ctx);
+  const VdCamera cam = test::TestCamera(160, 120);
+  const std::vector<float> depth = test::SphereDepth(cam, 0.8f, 0.2f, 1.2f);
+  const float c = std::cos(0.3f), s = std::sin(0.3f);
+  VdPose pose{};
+  pose.r0 = VD_F4(c, 0.f, s, 0.05f);
+  pose.r1 = VD_F4(0.f, 1.f, 0.f, -0.1f);
+  pose.r2 = VD_F4(-s, 0.f, c, 0.2f);
+  const float trunc = 0.016f, brick = 0.032f;
+  ocl::Buffer<float> dd = test::ToDevice(ctx, depth);
+  auto two = ocl::BrickTable::Create(*ctx, 1 << 14);
+  auto one = ocl::BrickTable::Create(*ctx, 1 << 14);
+  ASSERT_TRUE(two.ok() && one.ok());
+  ASSERT_TRUE(two->AllocateFromDepth(*ctx, dd, cam, pose, trunc, brick).ok());
+  ASSERT_TRUE(one->AllocateAndList(*ctx, dd, cam, pose, trunc, brick).ok());
+  const std::set<uint32_t> keys = KeySet(Contents(ctx, *two));
+  EXPECT_EQ(KeySet(Contents(ctx, *one)), keys);
+  auto listed_keys = [&](const ocl::BrickTable& t) {
+    auto counts = t.Counts(*ctx);
+    EXPECT_TRUE(counts.ok());
+    const std::vector<int32_t> listed = test::FromDevice(ctx, t.visible(), counts->visible);
+    const std::vector<uint32_t> slot_keys = test::FromDevice(ctx, t.slot_keys(), t.pool());
+    std::multiset<uint32_t> out;
+    for (int32_t sl : listed) out.insert(sl < 0 ? VD_BRICK_EMPTY : slot_keys[sl]);
+    return out;
+  };
+  const std::multiset<uint32_t> all(keys.begin(), keys.end());
+  EXPECT_EQ(listed_keys(*one), all);
+  // The CPU: the same keys, the same listing.
+  cpu::BrickTable ref(one->capacity(), one->pool());
+  const std::vector<int32_t> ref_listed = cpu::BrickAllocList(depth.data(), cam, pose, trunc, brick, &ref);
+  EXPECT_EQ(KeySet(Contents(ref.keys, ref.slots)), keys);
+  std::multiset<uint32_t> ref_keys;
+  for (int32_t sl : ref_listed) ref_keys.insert(ref.slot_keys[sl]);
+  EXPECT_EQ(ref_keys, all);
+  // The next frame: nothing new to allocate, every brick listed once again, stamped with it.
+  ASSERT_TRUE(one->AllocateAndList(*ctx, dd, cam, pose, trunc, brick).ok());
+  EXPECT_EQ(listed_keys(*one), all);
+  auto counts = one->Counts(*ctx);
+  ASSERT_TRUE(counts.ok());
+  EXPECT_EQ(counts->used, keys.size());
+  const std::vector<uint32_t> stamps = test::FromDevice(ctx, one->stamps(), counts->used);
+  EXPECT_TRUE(std::all_of(stamps.begin(), stamps.end(), [&](uint32_t st) { return st == one->frame(); }));
+  // A pool of 3000 bricks (a table with room for every key): 3000 listed with their slots, the
+  // others as -1, each counted once as a failure.
+  auto small = ocl::BrickTable::Create(*ctx, 3000);
+  ASSERT_TRUE(small.ok());
+  ASSERT_TRUE(small->AllocateAndList(*ctx, dd, cam, pose, trunc, brick).ok());
+  const std::multiset<uint32_t> partial = listed_keys(*small);
+  EXPECT_EQ(partial.size(), keys.size());
+  EXPECT_EQ(partial.count(VD_BRICK_EMPTY), keys.size() - 3000);
+  auto small_counts = small->Counts(*ctx);
+  ASSERT_TRUE(small_counts.ok());
+  EXPECT_EQ(small_counts->failed, keys.size() - 3000);
+}
+
 TEST(BrickHashParityTest, CompactionKeepsTheChosenBricksInSlotOrder) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
@@ -347,6 +407,31 @@ TEST(BrickHashParityTest, FusionIntoThePoolMatchesTheCpuAndTheDenseGrid) {
   EXPECT_GT(near, 100000u);
   EXPECT_EQ(outside, 0u) << "an observed near-surface voxel outside every allocated brick";
   EXPECT_LE(differ, n / 10000) << differ << " of " << n;  // measured: 0 of 493568
+}
+
+// The laned fusion (VD_LANES voxels per work item) against the CPU reference at every lane count a
+// device may be built with: one lane (a GPU), 4, 8 and 16.
+TEST(BrickHashParityTest, FusionMatchesTheCpuAtEveryLaneCount) {
+  VD_REQUIRE_OCL(ctx);
+  for (const char* lanes : {"1", "4", "8", "16"}) {
+    auto other = test::ContextWithLanes(*ctx, lanes);
+    ASSERT_TRUE(other.ok()) << other.status().ToString();
+    ocl::Context* lctx = other->get();
+    test::FusedBricks f;
+    test::FuseSphere(lctx, 2, &f);
+    if (HasFatalFailure()) return;
+    const size_t n = size_t(f.counts.used) * VD_BRICK_VOXELS;
+    const cpu::BrickTable ref = f.Reference(lctx);
+    std::vector<int32_t> listed = test::FromDevice(lctx, f.table->visible(), f.counts.visible);
+    std::vector<float> rt(n, 1.f), rw(n, 0.f);
+    std::vector<uint32_t> rc(n, 0u);
+    for (int frame = 0; frame < 2; ++frame)
+      cpu::SparseIntegrate(ref, listed, rt.data(), rw.data(), rc.data(), f.vol, f.cam, f.world_to_cam, f.depth.data(),
+                           f.rgba.data());
+    EXPECT_EQ(test::FromDevice(lctx, f.pool->weight, n), rw) << lanes << " lanes";
+    EXPECT_TRUE(test::AllClose(test::FromDevice(lctx, f.pool->tsdf, n), rt, 1e-6f, 0.f)) << lanes << " lanes";
+    EXPECT_EQ(test::FromDevice(lctx, f.pool->color, n), rc) << lanes << " lanes";
+  }
 }
 
 // Eviction: the bricks the last listing did not reach go first, oldest listing first; the pool's

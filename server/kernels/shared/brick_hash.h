@@ -80,6 +80,21 @@ VD_INLINE int vd_brick_insert(VD_GLOBAL vd_uint* keys, vd_uint capacity, vd_uint
   return -1;
 }
 
+/* Gives the entry h a key was just inserted into the next pool slot and records the key as the
+ * slot's; -1 and a failure when the pool is used up. Returns 0 on a failure, else 1. */
+VD_INLINE int vd_brick_give_slot(int h, VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys, vd_uint pool,
+                                 VD_GLOBAL vd_uint* counters, vd_uint key) {
+  vd_uint slot = VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_TAKEN]);
+  if (slot >= pool) {
+    slots[h] = -1;
+    VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
+    return 0;
+  }
+  slots[h] = (int)slot;
+  slot_keys[slot] = key;
+  return 1;
+}
+
 /* Inserts a key and, when it is new, gives its entry the next pool slot and records the key as
  * the slot's (slot_keys: one per pool slot); -1 and a failure when the pool of `pool` slots is
  * used up. Returns 0 on a failure, else 1. */
@@ -92,15 +107,7 @@ VD_INLINE int vd_brick_allocate(VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, V
     return 0;
   }
   if (!fresh) return 1;
-  vd_uint slot = VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_TAKEN]);
-  if (slot >= pool) {
-    slots[h] = -1;
-    VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
-    return 0;
-  }
-  slots[h] = (int)slot;
-  slot_keys[slot] = key;
-  return 1;
+  return vd_brick_give_slot(h, slots, slot_keys, pool, counters, key);
 }
 
 /* Puts a key back into pool slot `slot` (restoring a table from its slots' keys, as a checkpoint
@@ -177,6 +184,10 @@ VD_INLINE int vd_brick_seen(vd_uint key, vd_uint* seen, int* n_seen) {
  * stamp did not hold it already goes into visible[] (counted by counters[VD_BRICK_COUNT_VISIBLE]). */
 #define VD_BRICK_ALLOCATE 0
 #define VD_BRICK_LIST 1
+/* Both in one pass: each brick is allocated and its table entry listed once per frame (stamp: one
+ * per table entry, since a slot an other item is handing out may not be written yet); a second
+ * pass turns the entries into slots (vd_brick_entry_slot). */
+#define VD_BRICK_ALLOCATE_LIST 2
 
 /* One brick of a pass; returns 1 on a failure. */
 VD_INLINE int vd_brick_take(int mode, int bx, int by, int bz, VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots,
@@ -190,10 +201,31 @@ VD_INLINE int vd_brick_take(int mode, int bx, int by, int bz, VD_GLOBAL vd_uint*
   vd_uint key = vd_brick_pack(bx, by, bz);
   if (vd_brick_seen(key, seen, n_seen)) return 0;
   if (mode == VD_BRICK_ALLOCATE) return !vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, key);
+  if (mode == VD_BRICK_ALLOCATE_LIST) {
+    int fresh = 0;
+    int h = vd_brick_insert(keys, capacity, key, &fresh);
+    if (h < 0) {
+      VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
+      return 1;
+    }
+    int failure = fresh ? !vd_brick_give_slot(h, slots, slot_keys, pool, counters, key) : 0;
+    if (VD_ATOMIC_XCHG_U32(&stamp[h], frame) != frame)
+      visible[VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_VISIBLE])] = h;
+    return failure;
+  }
   int slot = vd_brick_find(keys, slots, capacity, key);
   if (slot >= 0 && VD_ATOMIC_XCHG_U32(&stamp[slot], frame) != frame)
     visible[VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_VISIBLE])] = slot;
   return 0;
+}
+
+/* The second pass of VD_BRICK_ALLOCATE_LIST, one listed entry i: visible[i] becomes the entry's
+ * slot (-1 when the pool had no room for it) and the slot's stamp the frame. */
+VD_INLINE void vd_brick_entry_slot(int i, VD_GLOBAL int* visible, VD_GLOBAL const int* slots,
+                                   VD_GLOBAL vd_uint* slot_stamp, vd_uint frame) {
+  int slot = slots[visible[i]];
+  visible[i] = slot;
+  if (slot >= 0) slot_stamp[slot] = frame;
 }
 
 /* Every brick the frustum of [u0, u1] x [v0, v1] reaches between near_d and far_d, through a

@@ -13,6 +13,19 @@ VD_INLINE vd_float4 vd_voxel_position(VdVolume vol, int x, int y, int z) {
 
 /* Fuses the observation of the grid point whose current position in camera coordinates is
  * p_cam. depth: metres, 0 invalid; color: packed RGBA (alpha 0 = no colour). */
+/* Running average of a grid point's colour with an observation inside the band (one that carries
+ * colour: alpha != 0). */
+VD_INLINE void vd_tsdf_fuse_color(VD_GLOBAL vd_uint* color, int index, vd_uint c_obs) {
+  if ((c_obs >> 24) == 0u) return;
+  vd_float4 c_old = vd_unpack_rgba(color[index]);
+  vd_float4 c_new = vd_unpack_rgba(c_obs);
+  /* Colour weight counts only observations that carried colour (alpha holds up to 255). */
+  float cw = c_old.w;
+  float cw_new = fmin(cw + 1.0f, 255.0f);
+  vd_float4 c = (c_old * cw + c_new) / (cw + 1.0f);
+  color[index] = vd_pack_rgba(c.x, c.y, c.z, cw_new);
+}
+
 VD_INLINE void vd_tsdf_integrate_point(VD_GLOBAL float* tsdf, VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color,
                                        int index, vd_float4 p_cam, VdVolume vol, VdCamera cam,
                                        VD_GLOBAL const float* depth, VD_GLOBAL const vd_uint* rgba) {
@@ -33,16 +46,7 @@ VD_INLINE void vd_tsdf_integrate_point(VD_GLOBAL float* tsdf, VD_GLOBAL float* w
   float w_new = w_old + 1.0f;
   tsdf[index] = (tsdf[index] * w_old + f) / w_new;
   weight[index] = fmin(w_new, vol.max_weight);
-  vd_uint c_obs = rgba[pix];
-  if (fabs(sdf) < vol.truncation && (c_obs >> 24) != 0u) {
-    vd_float4 c_old = vd_unpack_rgba(color[index]);
-    vd_float4 c_new = vd_unpack_rgba(c_obs);
-    /* Colour weight counts only observations that carried colour (alpha holds up to 255). */
-    float cw = c_old.w;
-    float cw_new = fmin(cw + 1.0f, 255.0f);
-    vd_float4 c = (c_old * cw + c_new) / (cw + 1.0f);
-    color[index] = vd_pack_rgba(c.x, c.y, c.z, cw_new);
-  }
+  if (fabs(sdf) < vol.truncation) vd_tsdf_fuse_color(color, index, rgba[pix]);
 }
 
 /* Rigid integration of grid row (y, z): grid points at their regular positions, seen through

@@ -944,8 +944,7 @@ Status Engine::IntegrateBricks(FrameResult* result) {
   const float brick = VD_BRICK * vol.voxel_size;
   const VdPose cam_to_world = ToVdPose(pose_);
   auto allocate = [&]() -> StatusOr<ocl::BrickCounts> {
-    VD_RETURN_IF_ERROR(bricks_->AllocateFromDepth(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
-    VD_RETURN_IF_ERROR(bricks_->ListVisible(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
+    VD_RETURN_IF_ERROR(bricks_->AllocateAndList(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
     return bricks_->Counts(*ctx_);
   };
   VD_ASSIGN_OR_RETURN(ocl::BrickCounts counts, allocate());

@@ -22,6 +22,21 @@ void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, floa
                        t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, nullptr, 0u, nullptr, t->counters);
 }
 
+std::vector<int32_t> BrickAllocList(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                                    float brick_size, BrickTable* t) {
+  std::vector<uint32_t> entry_stamp(t->capacity, 0u);
+  std::vector<int32_t> visible(t->capacity);
+  t->counters[VD_BRICK_COUNT_VISIBLE] = 0;
+  for (int i = 0; i < vd_depth_tiles_x(cam) * vd_depth_tiles_y(cam); ++i)
+    vd_brick_take_tile(VD_BRICK_ALLOCATE_LIST, i, depth, cam, cam_to_world, truncation, brick_size, t->keys.data(),
+                       t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, entry_stamp.data(), 1u,
+                       visible.data(), t->counters);
+  visible.resize(t->counters[VD_BRICK_COUNT_VISIBLE]);
+  for (size_t i = 0; i < visible.size(); ++i)
+    vd_brick_entry_slot(int(i), visible.data(), t->slots.data(), t->stamp.data(), 1u);
+  return visible;
+}
+
 void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* t) {
   for (size_t i = 0; i < n; ++i)
     vd_brick_allocate(t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, t->counters, in[i]);

@@ -23,6 +23,10 @@ struct BrickTable {
 
 void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
                      BrickTable* table);
+// Allocation and listing in one pass (BrickTable::AllocateAndList): the listed slots (-1 where the
+// pool had no room), each brick once.
+std::vector<int32_t> BrickAllocList(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                                    float brick_size, BrickTable* table);
 void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* table);
 // Slot s gets key in[s] (the table must be empty); failures counted as the device counts them.
 void BrickRestore(const uint32_t* in, size_t n, BrickTable* table);

@@ -19,8 +19,10 @@ StatusOr<BrickTable> BrickTable::Create(Context& ctx, uint32_t pool) {
   VD_ASSIGN_OR_RETURN(t.slots_, ctx.Alloc<int32_t>(t.capacity_));
   VD_ASSIGN_OR_RETURN(t.slot_keys_, ctx.Alloc<uint32_t>(pool));
   VD_ASSIGN_OR_RETURN(t.stamp_, ctx.Alloc<uint32_t>(pool));
-  VD_ASSIGN_OR_RETURN(t.visible_, ctx.Alloc<int32_t>(pool));
+  // One per table entry: AllocateAndList lists entries, of which a frame may name more than the pool holds.
+  VD_ASSIGN_OR_RETURN(t.visible_, ctx.Alloc<int32_t>(t.capacity_));
   VD_ASSIGN_OR_RETURN(t.counters_, ctx.Alloc<uint32_t>(VD_BRICK_COUNTERS));
+  VD_ASSIGN_OR_RETURN(t.entry_stamp_, ctx.Alloc<uint32_t>(t.capacity_));
   VD_RETURN_IF_ERROR(t.Clear(ctx));
   return t;
 }
@@ -30,6 +32,7 @@ Status BrickTable::Clear(Context& ctx) {
   VD_RETURN_IF_ERROR(ctx.Fill(slots_, int32_t(-1), capacity_));
   VD_RETURN_IF_ERROR(ctx.Fill(slot_keys_, VD_BRICK_EMPTY, pool_));
   VD_RETURN_IF_ERROR(ctx.Fill(stamp_, 0u, pool_));
+  VD_RETURN_IF_ERROR(ctx.Fill(entry_stamp_, 0u, capacity_));
   frame_ = 0;
   return ctx.Fill(counters_, 0u, VD_BRICK_COUNTERS);
 }
@@ -46,14 +49,32 @@ Status BrickTable::ListVisible(Context& ctx, const Buffer<float>& depth, VdCamer
                                float truncation, float brick_size) {
   if (!(brick_size > 0.f) || !(truncation >= 0.f)) return InvalidArgument("brick size and truncation must be positive");
   if (depth.size() < size_t(cam.width) * cam.height) return InvalidArgument("depth buffer smaller than the camera");
+  VD_RETURN_IF_ERROR(NextFrame(ctx));
+  return kBrickList(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam, cam_to_world, truncation,
+                    brick_size, keys_, slots_, capacity_, stamp_, frame_, visible_, counters_);
+}
+
+Status BrickTable::NextFrame(Context& ctx) {
   const uint32_t zero = 0;
   VD_RETURN_IF_ERROR(ctx.Upload(counters_, &zero, 1, VD_BRICK_COUNT_VISIBLE));
   if (++frame_ == 0) {  // wrapped: no stamp may match the new number
     VD_RETURN_IF_ERROR(ctx.Fill(stamp_, 0u, pool_));
+    VD_RETURN_IF_ERROR(ctx.Fill(entry_stamp_, 0u, capacity_));
     frame_ = 1;
   }
-  return kBrickList(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam, cam_to_world, truncation,
-                    brick_size, keys_, slots_, capacity_, stamp_, frame_, visible_, counters_);
+  return Status::Ok();
+}
+
+Status BrickTable::AllocateAndList(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world,
+                                   float truncation, float brick_size) {
+  if (!(brick_size > 0.f) || !(truncation >= 0.f)) return InvalidArgument("brick size and truncation must be positive");
+  if (depth.size() < size_t(cam.width) * cam.height) return InvalidArgument("depth buffer smaller than the camera");
+  VD_RETURN_IF_ERROR(NextFrame(ctx));
+  VD_RETURN_IF_ERROR(kBrickAllocList(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam,
+                                     cam_to_world, truncation, brick_size, keys_, slots_, slot_keys_, capacity_, pool_,
+                                     entry_stamp_, frame_, visible_, counters_));
+  VD_ASSIGN_OR_RETURN(const BrickCounts counts, Counts(ctx));
+  return kBrickEntrySlots(ctx, counts.visible, visible_, slots_, stamp_, frame_);
 }
 
 Status BrickTable::Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n) {
@@ -110,6 +131,8 @@ Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep, BrickPo
   std::swap(slots_, new_slots_);
   std::swap(slot_keys_, new_slot_keys_);
   std::swap(stamp_, new_stamp_);
+  // Entries moved: their stamps mean nothing now.
+  VD_RETURN_IF_ERROR(ctx.Fill(entry_stamp_, 0u, capacity_));
   if (pool && before.used > 0) {
     VD_RETURN_IF_ERROR(kBrickPoolMove(ctx, VD_BRICK_VOXELS, keep, offsets_, int32_t(before.used), pool->tsdf,
                                       pool->weight, pool->color));
@@ -203,8 +226,8 @@ Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, V
   if (pool.slots < counts.used)
     return InvalidArgument("the brick pool holds " + std::to_string(pool.slots) + " bricks; the table has handed out " +
                            std::to_string(counts.used));
-  return kSparseIntegrate(ctx, size_t(counts.visible) * VD_BRICK * VD_BRICK, table.visible(), table.slot_keys(),
-                          pool.tsdf, pool.weight, pool.color, vol, cam, world_to_cam, depth, rgba);
+  return kSparseIntegrate(ctx, size_t(counts.visible) * VD_BRICK_VOXELS, table.visible(), table.slot_keys(), pool.tsdf,
+                          pool.weight, pool.color, vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd::ocl

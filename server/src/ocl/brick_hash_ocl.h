@@ -18,6 +18,16 @@ inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose ca
                              float brick_size, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
                              Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
     kBrickAllocDepth{"vd_brick_table_alloc_depth"};
+// One item per depth tile.
+inline constexpr Kernel<void(
+    const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
+    Buffer<uint32_t>& keys, Buffer<int32_t>& slots, Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool,
+    Buffer<uint32_t>& entry_stamp, uint32_t frame, Buffer<int32_t>& visible, Buffer<uint32_t>& counters)>
+    kBrickAllocList{"vd_brick_table_alloc_list"};
+// One item per listed entry.
+inline constexpr Kernel<void(Buffer<int32_t>& visible, const Buffer<int32_t>& slots, Buffer<uint32_t>& slot_stamp,
+                             uint32_t frame)>
+    kBrickEntrySlots{"vd_brick_entry_slots"};
 // One item per key inserted.
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
                              Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
@@ -46,11 +56,11 @@ inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose ca
                              Buffer<uint32_t>& stamp, uint32_t frame, Buffer<int32_t>& visible,
                              Buffer<uint32_t>& counters)>
     kBrickList{"vd_brick_table_list"};
-// One item per row of 8 voxels of the listed bricks.
+// Laned, one item per voxel of the listed bricks.
 inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf,
                              Buffer<float>& weight, Buffer<uint32_t>& color, VdVolume vol, VdCamera cam,
                              VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
-    kSparseIntegrate{"vd_sparse_integrate"};
+    kSparseIntegrate{"vd_sparse_integrate", kLaned};
 
 // One item per pool slot handed out.
 inline constexpr Kernel<void(const Buffer<uint32_t>& slot_keys, const Buffer<uint32_t>& keys,
@@ -93,6 +103,10 @@ class BrickTable {
   Status ListVisible(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation,
                      float brick_size);
   const Buffer<int32_t>& visible() const { return visible_; }
+  // AllocateFromDepth and ListVisible in one walk over the depth (the list may hold -1 for a brick
+  // the pool had no room for).
+  Status AllocateAndList(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world, float truncation,
+                         float brick_size);
   // Inserts n packed keys (a key already there keeps its slot).
   Status Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n);
   // Empties the table and gives slot s the key keys[s] for s < n (a table saved as its slots' keys,
@@ -124,6 +138,10 @@ class BrickTable {
   // The frame number ListVisible stamps slots with (0: never listed).
   uint32_t frame_ = 0;
   Buffer<uint32_t> keys_, slot_keys_, counters_, stamp_;
+  // AllocateAndList's stamps, one per table entry (entries move at compaction: cleared then).
+  Buffer<uint32_t> entry_stamp_;
+  // The next frame number for a listing (wraps: every stamp is cleared then).
+  Status NextFrame(Context& ctx);
   Buffer<int32_t> slots_, visible_;
   // VD_BRICK_NEIGHBOURS slots per slot in use (BuildNeighbours).
   Buffer<int32_t> neighbours_;
