@@ -86,3 +86,60 @@ __kernel void vd_sparse_mc_triangles(__global const ushort* codes, __global cons
     }
   }
 }
+
+/* The active set over the pool (shared/sparse_mesh.h), one work item per row of 8 points of a slot
+ * as above, then one per member. Slots without a brick write zeros. */
+__kernel void vd_sparse_active_surface(__global const ushort* codes, __global const uchar* tri_counts,
+                                       __global const int* nbr, __global uchar* surface, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
+  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
+  int present = nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0;
+  for (int x = 0; x < VD_BRICK; ++x)
+    surface[base + x] = present ? vd_sparse_surface_point(codes, tri_counts, nbr, slot, x, y, z) : 0;
+}
+
+__kernel void vd_sparse_active_dilate(__global const uchar* surface, __global const int* nbr, __global uchar* member,
+                                      __global uint* row_count, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
+  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
+  int present = nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0;
+  uint n = 0u;
+  for (int x = 0; x < VD_BRICK; ++x) {
+    uchar m = present ? vd_sparse_dilate_point(surface, nbr, slot, x, y, z) : 0;
+    member[base + x] = m;
+    n += m;
+  }
+  row_count[i] = n;
+}
+
+/* The member list (pool voxel indices, in pool order) and the pool -> compact map. */
+__kernel void vd_sparse_active_compact(__global const uchar* member, __global const uint* row_offset,
+                                       __global int* list, __global int* compact, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  uint out = row_offset[i];
+  for (int x = 0; x < VD_BRICK; ++x) {
+    int v = i * VD_BRICK + x;
+    if (member[v]) {
+      list[out] = v;
+      compact[v] = (int)out;
+      ++out;
+    } else {
+      compact[v] = -1;
+    }
+  }
+}
+
+/* One work item per member. */
+__kernel void vd_sparse_active_neighbours(__global const int* list, __global const int* compact,
+                                          __global const int* nbr, __global int* neighbours, int vd_items) {
+  int k = get_global_id(0);
+  if (k >= vd_items) return;
+  int v = list[k], slot = v / VD_BRICK_VOXELS, in_brick = v % VD_BRICK_VOXELS;
+  vd_sparse_neighbours_of(compact, nbr, slot, in_brick % VD_BRICK, (in_brick / VD_BRICK) % VD_BRICK,
+                          in_brick / VD_BRICK_ROWS, neighbours + 6 * k);
+}

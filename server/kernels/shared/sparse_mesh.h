@@ -128,4 +128,48 @@ VD_INLINE int vd_sparse_edge_vertex(VD_GLOBAL const vd_uchar* masks, VD_GLOBAL c
   return (int)vert_offset[owner] + vd_popcount3(below);
 }
 
+/* The active set M over the pool (shared/active_set.h's rules: the corners of cells with triangles
+ * and their 6-neighbourhood), pool voxel indices for grid indices. A member whose brick is not
+ * allocated cannot hold a deformation: it is left out, and the neighbour pointing at it is -1. */
+
+/* 1 when local point (x, y, z) of `slot` is a corner of a cell with triangles. */
+VD_INLINE vd_uchar vd_sparse_surface_point(VD_GLOBAL const vd_ushort* codes, VD_GLOBAL const vd_uchar* tri_counts,
+                                           VD_GLOBAL const int* nbr, int slot, int x, int y, int z) {
+  for (int k = 0; k < 8; ++k) {
+    int c = vd_brick_voxel_at(nbr, slot, x - (k & 1), y - ((k >> 1) & 1), z - ((k >> 2) & 1));
+    if (c < 0) continue;
+    vd_uint code = codes[c];
+    if ((code & VD_MC_VALID) && tri_counts[code & 255u] > 0) return 1;
+  }
+  return 0;
+}
+
+/* Pool index of the d-th 6-neighbour (-x, +x, -y, +y, -z, +z) of local point (x, y, z) of `slot`,
+ * -1 when its brick is not allocated. */
+VD_INLINE int vd_sparse_face_neighbour(VD_GLOBAL const int* nbr, int slot, int x, int y, int z, int d) {
+  int s = (d & 1) ? 1 : -1;
+  return vd_brick_voxel_at(nbr, slot, x + (d >> 1 == 0 ? s : 0), y + (d >> 1 == 1 ? s : 0), z + (d >> 1 == 2 ? s : 0));
+}
+
+/* 1 when local point (x, y, z) of `slot` is a surface point or a 6-neighbour of one. */
+VD_INLINE vd_uchar vd_sparse_dilate_point(VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const int* nbr, int slot, int x,
+                                          int y, int z) {
+  if (surface[vd_brick_voxel_at(nbr, slot, x, y, z)]) return 1;
+  for (int d = 0; d < 6; ++d) {
+    int i = vd_sparse_face_neighbour(nbr, slot, x, y, z, d);
+    if (i >= 0 && surface[i]) return 1;
+  }
+  return 0;
+}
+
+/* Compact indices of the 6-neighbours of local point (x, y, z) of `slot` (-1 outside M or the
+ * allocated bricks), in the order -x, +x, -y, +y, -z, +z. compact: pool voxel -> compact index. */
+VD_INLINE void vd_sparse_neighbours_of(VD_GLOBAL const int* compact, VD_GLOBAL const int* nbr, int slot, int x, int y,
+                                       int z, VD_GLOBAL int* out) {
+  for (int d = 0; d < 6; ++d) {
+    int i = vd_sparse_face_neighbour(nbr, slot, x, y, z, d);
+    out[d] = i >= 0 ? compact[i] : -1;
+  }
+}
+
 #endif /* VD_SPARSE_MESH_H */

@@ -174,4 +174,39 @@ McMesh SparseMarchingCubes(const BrickTable& t, uint32_t used, const float* tsdf
   return mesh;
 }
 
+ActiveSet SparseActiveSet(const BrickTable& t, uint32_t used, const uint16_t* codes) {
+  const McTable& table = GetMcTable();
+  const std::vector<int32_t> nbr = BrickNeighbours(t, used);
+  const size_t n = size_t(used) * VD_BRICK_VOXELS;
+  std::vector<uint8_t> surface(n, 0), member(n, 0);
+  auto each = [&](auto&& f) {
+    for (size_t i = 0; i < n; ++i) {
+      const int slot = int(i / VD_BRICK_VOXELS), v = int(i % VD_BRICK_VOXELS);
+      if (nbr[VD_BRICK_NEIGHBOURS * size_t(slot) + VD_BRICK_SELF] < 0) continue;
+      f(i, slot, v % VD_BRICK, (v / VD_BRICK) % VD_BRICK, v / VD_BRICK_ROWS);
+    }
+  };
+  each([&](size_t i, int s, int x, int y, int z) {
+    surface[i] = vd_sparse_surface_point(codes, table.counts.data(), nbr.data(), s, x, y, z);
+  });
+  each([&](size_t i, int s, int x, int y, int z) {
+    member[i] = vd_sparse_dilate_point(surface.data(), nbr.data(), s, x, y, z);
+  });
+  // Independent of the device's scan: a sequential compaction.
+  ActiveSet out;
+  out.compact.assign(n, -1);
+  for (size_t i = 0; i < n; ++i) {
+    if (!member[i]) continue;
+    out.compact[i] = int32_t(out.list.size());
+    out.list.push_back(int32_t(i));
+  }
+  out.neighbours.resize(6 * out.list.size());
+  for (size_t k = 0; k < out.list.size(); ++k) {
+    const int v = out.list[k] % VD_BRICK_VOXELS;
+    vd_sparse_neighbours_of(out.compact.data(), nbr.data(), out.list[k] / VD_BRICK_VOXELS, v % VD_BRICK,
+                            (v / VD_BRICK) % VD_BRICK, v / VD_BRICK_ROWS, &out.neighbours[6 * k]);
+  }
+  return out;
+}
+
 }  // namespace vd::cpu

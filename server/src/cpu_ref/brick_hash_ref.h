@@ -53,4 +53,8 @@ std::vector<int32_t> BrickNeighbours(const BrickTable& table, uint32_t used);
 McMesh SparseMarchingCubes(const BrickTable& table, uint32_t used, const float* tsdf, const float* weight,
                            const uint32_t* color);
 
+// The active set over the first `used` slots from SparseMarchingCubes' codes: list and compact in
+// pool voxel indices, 6 neighbours per member.
+ActiveSet SparseActiveSet(const BrickTable& table, uint32_t used, const uint16_t* codes);
+
 }  // namespace vd::cpu

@@ -123,6 +123,9 @@ class DeviceOps {
                          VdPose world_to_cam, const ocl::Buffer<float>& depth, const ocl::Buffer<uint32_t>& rgba);
   // M from the cell codes of the last MarchingCubes() call on v.
   Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out);
+  // M over a sparse volume from the last MarchingCubes() call on its bricks: list and compact hold
+  // pool voxel indices (slot * 512 + local) for grid indices.
+  Status BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out);
   Status Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out);
   Status IcpReduce(const ocl::Buffer<vd_float4>& vmap, const ocl::Buffer<vd_float4>& nmap,
                    const ocl::Buffer<vd_float4>& model_v, const ocl::Buffer<vd_float4>& model_n, int n,

@@ -1,6 +1,8 @@
 // DeviceOps' marching cubes over the brick pool (kernels/sparse_mesh.cl; class in ocl/device_ops.h).
 #include "ocl/sparse_mesh_ocl.h"
 
+#include <algorithm>
+
 #include "ocl/brick_hash_ocl.h"
 #include "ocl/device_ops.h"
 
@@ -42,6 +44,31 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
                                             mesh->normals, mesh->colors));
   return ocl::kSparseMcTriangles(*ctx_, rows, mc_codes_, mc_row_tris_, mc_row_tri_offset_, mc_tri_table_, mc_masks_,
                                  mc_vert_offset_, nbr, mesh->triangles);
+}
+
+Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out) {
+  VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, table.Counts(*ctx_));
+  const size_t n = size_t(counts.used) * VD_BRICK_VOXELS, rows = size_t(counts.used) * VD_BRICK_ROWS;
+  if (mc_codes_.size() < n || table.neighbours().size() < size_t(VD_BRICK_NEIGHBOURS) * counts.used)
+    return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on these bricks");
+  out->count = 0;
+  if (counts.used == 0) return Status::Ok();
+  const ocl::Buffer<int32_t>& nbr = table.neighbours();
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_surface_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_member_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_count_, rows));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_offset_, rows + 1));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
+  VD_RETURN_IF_ERROR(ocl::kSparseActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, nbr, active_surface_));
+  VD_RETURN_IF_ERROR(ocl::kSparseActiveDilate(*ctx_, rows, active_surface_, nbr, active_member_, active_row_count_));
+  uint32_t total = 0;
+  VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
+  out->count = total;
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(
+      ocl::kSparseActiveCompact(*ctx_, rows, active_member_, active_row_offset_, out->list, out->compact));
+  return ocl::kSparseActiveNeighbours(*ctx_, total, out->list, out->compact, nbr, out->neighbours);
 }
 
 }  // namespace vd

@@ -26,4 +26,18 @@ inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint32_
                              const Buffer<int32_t>& nbr, Buffer<int32_t>& tris)>
     kSparseMcTriangles{"vd_sparse_mc_triangles"};
 
+// The active set over the pool: one item per row of 8 points of a slot, then one per member.
+inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint8_t>& tri_counts,
+                             const Buffer<int32_t>& nbr, Buffer<uint8_t>& surface)>
+    kSparseActiveSurface{"vd_sparse_active_surface"};
+inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<int32_t>& nbr, Buffer<uint8_t>& member,
+                             Buffer<uint32_t>& row_count)>
+    kSparseActiveDilate{"vd_sparse_active_dilate"};
+inline constexpr Kernel<void(const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, Buffer<int32_t>& list,
+                             Buffer<int32_t>& compact)>
+    kSparseActiveCompact{"vd_sparse_active_compact"};
+inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, const Buffer<int32_t>& nbr,
+                             Buffer<int32_t>& neighbours)>
+    kSparseActiveNeighbours{"vd_sparse_active_neighbours"};
+
 }  // namespace vd::ocl
