@@ -85,10 +85,10 @@ __kernel void vd_brick_table_alloc_list(__global const float* depth, VdCamera ca
 
 /* One work item per listed entry: its slot, stamped with the frame. */
 __kernel void vd_brick_entry_slots(__global int* visible, __global const int* slots, __global uint* slot_stamp,
-                                   uint frame, int vd_items) {
+                                   uint frame, __global uint* counters, int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  vd_brick_entry_slot(i, visible, slots, slot_stamp, frame);
+  vd_brick_entry_slot(i, visible, slots, slot_stamp, frame, counters);
 }
 
 /* Rigid fusion of the depth frame into the listed bricks, VD_LANES consecutive voxels of a brick per

@@ -554,6 +554,48 @@ TEST_F(NodeTest, SignalsStopServingWithoutAnError) {
   EXPECT_GE(inbox_.status.size(), 1u) << "the loop published status while it served";
 }
 
+// A node on the sparse volume (--rigid-only --sparse-volume) with a pool smaller than one view:
+// the status names the pool's use and that it is full, the node keeps serving, and a snapshot
+// (meshes and a checkpoint by brick key) is written.
+class SparseNodeTest : public NodeTest {
+ protected:
+  void SetUp() override {
+    options_.engine.rigid_only = true;
+    options_.engine.sparse_volume = true;
+    options_.engine.max_grid_mb = 1.0;
+    NodeTest::SetUp();
+  }
+};
+
+TEST_F(SparseNodeTest, AFullBrickPoolIsInTheStatusAndTheNodeGoesOn) {
+  SyntheticOptions so;
+  so.noise = false;
+  auto tube = MakeSyntheticScene("tube", so);
+  ASSERT_TRUE(tube.ok());
+  for (int k = 0; k < 3; ++k) SendAndProcess((*tube)->Render(k), k);
+  auto st = Status();
+  EXPECT_EQ(int(st.state), int(vdeform::server_status_t::STATE_TRACKING)) << st.message;
+  EXPECT_EQ(st.frames_processed, 3);
+  EXPECT_NE(st.message.find("bricks "), std::string::npos) << st.message;
+  EXPECT_NE(st.message.find("BRICK POOL FULL"), std::string::npos) << st.message;
+  EXPECT_FALSE(inbox_.meshes.empty());
+  // SAVE_SNAPSHOT: the meshes and the model by brick key.
+  vdeform::control_t c{};
+  c.command = vdeform::control_t::COMMAND_SAVE_SNAPSHOT;
+  c.path = "sparse";
+  c.auth_size = 0;
+  lcm_.publish(kControlChannel, &c);
+  Pump();
+  node_->RunOnce();
+  const std::string snap = options_.snapshot_dir + "/sparse/";
+  EXPECT_TRUE(std::filesystem::exists(snap + kSnapshotLiveFile));
+  auto model = ReadCheckpoint(snap + kCheckpointFile);
+  ASSERT_TRUE(model.ok()) << model.status().ToString();
+  EXPECT_TRUE(model->sparse);
+  EXPECT_EQ(model->frames_fused, 3);
+  EXPECT_GT(model->brick_keys.size(), 100u);
+}
+
 // A frame of another scene: reported in the status as TRACKING_LOST, not fused (the model's frame
 // count does not move), tracking resumes on the scene; RESET then drops the model.
 TEST_F(NodeTest, TrackingFailureIsReportedAndResetStartsANewModel) {

@@ -294,6 +294,16 @@ TEST(BrickHashParityTest, AllocationAndListingInOnePassMatchTheTwoPasses) {
   auto small_counts = small->Counts(*ctx);
   ASSERT_TRUE(small_counts.ok());
   EXPECT_EQ(small_counts->failed, keys.size() - 3000);
+  EXPECT_EQ(small_counts->unfused, keys.size() - 3000);
+  // The next frame fails no insert (the keys are in the table) but still says what it cannot fuse.
+  ASSERT_TRUE(small->AllocateAndList(*ctx, dd, cam, pose, trunc, brick).ok());
+  small_counts = small->Counts(*ctx);
+  ASSERT_TRUE(small_counts.ok());
+  EXPECT_EQ(small_counts->failed, keys.size() - 3000);
+  EXPECT_EQ(small_counts->unfused, keys.size() - 3000);
+  cpu::BrickTable ref_small(small->capacity(), small->pool());
+  cpu::BrickAllocList(depth.data(), cam, pose, trunc, brick, &ref_small);
+  EXPECT_EQ(ref_small.counters[VD_BRICK_COUNT_UNFUSED], keys.size() - 3000);
 }
 
 TEST(BrickHashParityTest, CompactionKeepsTheChosenBricksInSlotOrder) {

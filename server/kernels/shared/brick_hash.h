@@ -23,7 +23,9 @@
 #define VD_BRICK_COUNT_FAILED 1
 /* Bricks listed for this frame (vd_brick_list_pixel). */
 #define VD_BRICK_COUNT_VISIBLE 2
-#define VD_BRICK_COUNTERS 3
+/* Bricks listed for this frame without a slot (the pool had no room): surface not fused. */
+#define VD_BRICK_COUNT_UNFUSED 3
+#define VD_BRICK_COUNTERS 4
 
 VD_INLINE int vd_brick_coords_valid(int bx, int by, int bz) {
   return bx >= VD_BRICK_COORD_MIN && bx <= VD_BRICK_COORD_MAX && by >= VD_BRICK_COORD_MIN && by <= VD_BRICK_COORD_MAX &&
@@ -220,12 +222,15 @@ VD_INLINE int vd_brick_take(int mode, int bx, int by, int bz, VD_GLOBAL vd_uint*
 }
 
 /* The second pass of VD_BRICK_ALLOCATE_LIST, one listed entry i: visible[i] becomes the entry's
- * slot (-1 when the pool had no room for it) and the slot's stamp the frame. */
+ * slot (-1 when the pool had no room for it: counted as unfused) and the slot's stamp the frame. */
 VD_INLINE void vd_brick_entry_slot(int i, VD_GLOBAL int* visible, VD_GLOBAL const int* slots,
-                                   VD_GLOBAL vd_uint* slot_stamp, vd_uint frame) {
+                                   VD_GLOBAL vd_uint* slot_stamp, vd_uint frame, VD_GLOBAL vd_uint* counters) {
   int slot = slots[visible[i]];
   visible[i] = slot;
-  if (slot >= 0) slot_stamp[slot] = frame;
+  if (slot >= 0)
+    slot_stamp[slot] = frame;
+  else
+    VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_UNFUSED]);
 }
 
 /* Every brick the frustum of [u0, u1] x [v0, v1] reaches between near_d and far_d, through a

@@ -917,7 +917,7 @@ Status Engine::CreateBricks() {
   vol.origin = VD_F4(0.f, 0.f, 0.f, 1.f);
   volume_ = DeviceVolume();
   volume_.vol = vol;
-  bricks_failed_before_ = 0;
+  pool_full_reported_ = false;
   bricks_evicted_ = 0;
   if (bricks_ && pool_) {
     // A new model in the same table and pool: every brick back at rest.
@@ -948,11 +948,11 @@ Status Engine::IntegrateBricks(FrameResult* result) {
     return bricks_->Counts(*ctx_);
   };
   VD_ASSIGN_OR_RETURN(ocl::BrickCounts counts, allocate());
-  if (counts.failed > bricks_failed_before_) {
+  if (counts.unfused > 0) {
     // The pool is full: the bricks seen longest ago make room (a quarter of the pool at once, so this
     // stays rare), then the frame's band is allocated again.
     VD_ASSIGN_OR_RETURN(const uint32_t dropped,
-                        bricks_->EvictOldest(ops_, *pool_, std::max(bricks_->pool() / 4, counts.failed)));
+                        bricks_->EvictOldest(ops_, *pool_, std::max(bricks_->pool() / 4, counts.unfused)));
     if (dropped > 0) {
       result->bricks_evicted = dropped;
       bricks_evicted_ += dropped;
@@ -969,13 +969,12 @@ Status Engine::IntegrateBricks(FrameResult* result) {
   result->bricks_used = counts.used;
   result->bricks_pool = bricks_->pool();
   result->bricks_evicted_total = bricks_evicted_;
-  // Compaction restarts the table's failure count.
-  const uint32_t before = result->bricks_evicted > 0 ? 0u : bricks_failed_before_;
-  result->bricks_failed = int64_t(counts.failed) - int64_t(before);
-  if (result->bricks_failed > 0)
+  result->bricks_failed = counts.unfused;
+  if (counts.unfused > 0 && !pool_full_reported_)
     VD_LOG_WARNING << "the brick pool is full (" << counts.used << " bricks, --max-grid-mb " << params_.max_grid_mb
-                   << ") with this frame's own surface: " << result->bricks_failed << " of its bricks were not fused";
-  bricks_failed_before_ = counts.failed;
+                   << ") with the surface in view: " << counts.unfused
+                   << " of this frame's bricks are not fused (said once; the status says it every frame)";
+  pool_full_reported_ = pool_full_reported_ || counts.unfused > 0;
   return Status::Ok();
 }
 

@@ -271,8 +271,8 @@ class Engine {
   std::optional<ocl::BrickPool> pool_;
   // Bricks of voxels the pool starts with (it grows as the table hands out slots).
   static constexpr uint32_t kInitialBricks = 1024;
-  // Failed brick inserts counted before this frame (the table's counter only grows).
-  uint32_t bricks_failed_before_ = 0;
+  // The log has said once that the pool is full with the surface in view.
+  bool pool_full_reported_ = false;
   // Bricks dropped to make room since the model began.
   int64_t bricks_evicted_ = 0;
   // Creates the table and pool within max_grid_mb.

@@ -32,8 +32,9 @@ std::vector<int32_t> BrickAllocList(const float* depth, VdCamera cam, VdPose cam
                        t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, entry_stamp.data(), 1u,
                        visible.data(), t->counters);
   visible.resize(t->counters[VD_BRICK_COUNT_VISIBLE]);
+  t->counters[VD_BRICK_COUNT_UNFUSED] = 0;
   for (size_t i = 0; i < visible.size(); ++i)
-    vd_brick_entry_slot(int(i), visible.data(), t->slots.data(), t->stamp.data(), 1u);
+    vd_brick_entry_slot(int(i), visible.data(), t->slots.data(), t->stamp.data(), 1u, t->counters);
   return visible;
 }
 

@@ -26,7 +26,7 @@ inline constexpr Kernel<void(
     kBrickAllocList{"vd_brick_table_alloc_list"};
 // One item per listed entry.
 inline constexpr Kernel<void(Buffer<int32_t>& visible, const Buffer<int32_t>& slots, Buffer<uint32_t>& slot_stamp,
-                             uint32_t frame)>
+                             uint32_t frame, Buffer<uint32_t>& counters)>
     kBrickEntrySlots{"vd_brick_entry_slots"};
 // One item per key inserted.
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
@@ -76,8 +76,10 @@ struct BrickCounts {
   // Inserts that found no table entry within VD_BRICK_MAX_PROBE, no pool slot, or coordinates
   // outside the table's range.
   uint32_t failed = 0;
-  // Bricks the last ListVisible listed.
+  // Bricks the last ListVisible or AllocateAndList listed.
   uint32_t visible = 0;
+  // Of those, the ones AllocateAndList found no slot for (the pool is full): not fused this frame.
+  uint32_t unfused = 0;
 };
 
 // A brick table on the device: `capacity` entries (a power of two, at least twice the pool, so
