@@ -80,6 +80,29 @@ TEST(SparseVolumeTest, AFullPoolIsReportedAndTheServerGoesOn) {
   EXPECT_TRUE(state.Validate().ok());
 }
 
+// Surface beyond the reach of the brick keys (512 bricks from the first camera: 16.4 m at 4 mm) is
+// not fused, and every frame says so.
+TEST(SparseVolumeTest, SurfaceBeyondTheKeysReachIsReported) {
+  if (!test::HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  SyntheticOptions so;
+  auto scene = MakeSyntheticScene("rigid", so);
+  ASSERT_TRUE(scene.ok()) << scene.status().ToString();
+  EngineParams p;
+  p.rigid_only = true;
+  p.sparse_volume = true;
+  p.max_depth = 20.f;
+  auto engine = Engine::Create(p, "");
+  ASSERT_TRUE(engine.ok()) << engine.status().ToString();
+  RgbdFrame frame = (*scene)->Render(0);
+  // A wall 18 m away (raw millimetres).
+  frame.depth.setTo(cv::Scalar(18.0 * frame.depth_scale));
+  auto r = (*engine)->Process(frame);
+  ASSERT_TRUE(r.ok()) << r.status().ToString();
+  EXPECT_GT(r->bricks_out_of_range, 0);
+  EXPECT_EQ(r->bricks_used, 0);
+  EXPECT_NE(BrickPoolNote(*r).find("beyond the volume's reach"), std::string::npos) << BrickPoolNote(*r);
+}
+
 // A pool with room for the first view but not for all the camera sees: the bricks seen longest ago
 // are dropped to make room, tracking and the current surface do not suffer, and the status says so.
 TEST(SparseVolumeTest, AFullPoolDropsTheBricksSeenLongestAgo) {

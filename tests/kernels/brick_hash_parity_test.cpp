@@ -540,6 +540,15 @@ TEST(BrickHashParityTest, BadArgumentsAreRefused) {
   ASSERT_TRUE(counts.ok());
   EXPECT_EQ(counts->used, 0u);
   EXPECT_GT(counts->failed, 0u);
+  // The one-pass walk counts them as out of the volume's reach, each frame.
+  for (int frame = 0; frame < 2; ++frame) {
+    ASSERT_TRUE(table->AllocateAndList(*ctx, dfar, cam, test::IdentityPose(), 0.01f, 0.032f).ok());
+    counts = table->Counts(*ctx);
+    ASSERT_TRUE(counts.ok());
+    EXPECT_EQ(counts->used, 0u);
+    EXPECT_EQ(counts->visible, 0u);
+    EXPECT_GT(counts->out_of_range, 0u) << frame;
+  }
 }
 
 }  // namespace

@@ -25,7 +25,10 @@
 #define VD_BRICK_COUNT_VISIBLE 2
 /* Bricks listed for this frame without a slot (the pool had no room): surface not fused. */
 #define VD_BRICK_COUNT_UNFUSED 3
-#define VD_BRICK_COUNTERS 4
+/* Bricks this frame's band reaches beyond the coordinates a key can name (VD_BRICK_COORD_MIN/MAX),
+ * counted at every visit of AllocateAndList's walk (the same brick may count more than once). */
+#define VD_BRICK_COUNT_OUT_OF_RANGE 4
+#define VD_BRICK_COUNTERS 5
 
 VD_INLINE int vd_brick_coords_valid(int bx, int by, int bz) {
   return bx >= VD_BRICK_COORD_MIN && bx <= VD_BRICK_COORD_MAX && by >= VD_BRICK_COORD_MIN && by <= VD_BRICK_COORD_MAX &&
@@ -197,8 +200,10 @@ VD_INLINE int vd_brick_take(int mode, int bx, int by, int bz, VD_GLOBAL vd_uint*
                             vd_uint frame, VD_GLOBAL int* visible, VD_GLOBAL vd_uint* counters, vd_uint* seen,
                             int* n_seen) {
   if (!vd_brick_coords_valid(bx, by, bz)) {
-    if (mode == VD_BRICK_ALLOCATE) VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
-    return mode == VD_BRICK_ALLOCATE;
+    if (mode == VD_BRICK_LIST) return 0;
+    VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
+    if (mode == VD_BRICK_ALLOCATE_LIST) VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_OUT_OF_RANGE]);
+    return 1;
   }
   vd_uint key = vd_brick_pack(bx, by, bz);
   if (vd_brick_seen(key, seen, n_seen)) return 0;

@@ -903,6 +903,9 @@ std::string BrickPoolNote(const FrameResult& r) {
   if (r.bricks_evicted_total > 0)
     out += "; " + std::to_string(r.bricks_evicted_total) + " bricks seen longest ago dropped to make room" +
            (r.bricks_evicted > 0 ? " (" + std::to_string(r.bricks_evicted) + " this frame)" : "");
+  if (r.bricks_out_of_range > 0)
+    out += "; surface beyond the volume's reach (" + std::to_string(VD_BRICK_COORD_MAX) +
+           " bricks from the first camera) not fused: " + std::to_string(r.bricks_out_of_range) + " samples";
   if (r.bricks_failed > 0)
     out += "; BRICK POOL FULL: " + std::to_string(r.bricks_failed) +
            " bricks of this frame's surface were not fused (raise --max-grid-mb)";
@@ -970,6 +973,7 @@ Status Engine::IntegrateBricks(FrameResult* result) {
   result->bricks_pool = bricks_->pool();
   result->bricks_evicted_total = bricks_evicted_;
   result->bricks_failed = counts.unfused;
+  result->bricks_out_of_range = counts.out_of_range;
   if (counts.unfused > 0 && !pool_full_reported_)
     VD_LOG_WARNING << "the brick pool is full (" << counts.used << " bricks, --max-grid-mb " << params_.max_grid_mb
                    << ") with the surface in view: " << counts.unfused

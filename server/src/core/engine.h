@@ -168,6 +168,9 @@ struct FrameResult {
   int64_t bricks_failed = 0;
   int64_t bricks_evicted = 0;
   int64_t bricks_evicted_total = 0;
+  // Samples of this frame's surface beyond the reach of the brick keys (512 bricks from the first
+  // camera along each axis: +-16 m at 4 mm), not fused.
+  int64_t bricks_out_of_range = 0;
   // Non-rigid solve of this frame: constraint rows (dense pixels + 3 per sparse match), E_total before and after (0 when rigid).
   int dense_correspondences = 0;
   double energy_initial = 0.0;

@@ -55,9 +55,11 @@ Status BrickTable::ListVisible(Context& ctx, const Buffer<float>& depth, VdCamer
 }
 
 Status BrickTable::NextFrame(Context& ctx) {
-  const uint32_t zero[2] = {0u, 0u};
-  static_assert(VD_BRICK_COUNT_UNFUSED == VD_BRICK_COUNT_VISIBLE + 1, "the per-frame counters are adjacent");
-  VD_RETURN_IF_ERROR(ctx.Upload(counters_, zero, 2, VD_BRICK_COUNT_VISIBLE));
+  const uint32_t zero[3] = {0u, 0u, 0u};
+  static_assert(
+      VD_BRICK_COUNT_UNFUSED == VD_BRICK_COUNT_VISIBLE + 1 && VD_BRICK_COUNT_OUT_OF_RANGE == VD_BRICK_COUNT_VISIBLE + 2,
+      "the per-frame counters are adjacent");
+  VD_RETURN_IF_ERROR(ctx.Upload(counters_, zero, 3, VD_BRICK_COUNT_VISIBLE));
   if (++frame_ == 0) {  // wrapped: no stamp may match the new number
     VD_RETURN_IF_ERROR(ctx.Fill(stamp_, 0u, pool_));
     VD_RETURN_IF_ERROR(ctx.Fill(entry_stamp_, 0u, capacity_));
@@ -124,7 +126,7 @@ Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep, BrickPo
   VD_RETURN_IF_ERROR(ctx.Fill(new_slot_keys_, VD_BRICK_EMPTY, pool_));
   VD_RETURN_IF_ERROR(ctx.Reserve(&new_stamp_, pool_));
   VD_RETURN_IF_ERROR(ctx.Fill(new_stamp_, 0u, pool_));
-  const uint32_t counts[VD_BRICK_COUNTERS] = {kept, 0u, 0u, 0u};
+  const uint32_t counts[VD_BRICK_COUNTERS] = {kept, 0u, 0u, 0u, 0u};
   VD_RETURN_IF_ERROR(ctx.Upload(counters_, counts, VD_BRICK_COUNTERS));
   VD_RETURN_IF_ERROR(kBrickCompact(ctx, capacity_, keys_, slots_, keep, offsets_, stamp_, new_keys_, new_slots_,
                                    new_slot_keys_, new_stamp_, capacity_, counters_));
@@ -177,6 +179,7 @@ StatusOr<BrickCounts> BrickTable::Counts(Context& ctx) const {
   out.failed = c[VD_BRICK_COUNT_FAILED];
   out.visible = c[VD_BRICK_COUNT_VISIBLE];
   out.unfused = c[VD_BRICK_COUNT_UNFUSED];
+  out.out_of_range = c[VD_BRICK_COUNT_OUT_OF_RANGE];
   return out;
 }
 

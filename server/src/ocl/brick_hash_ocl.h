@@ -80,6 +80,9 @@ struct BrickCounts {
   uint32_t visible = 0;
   // Of those, the ones AllocateAndList found no slot for (the pool is full): not fused this frame.
   uint32_t unfused = 0;
+  // Visits of AllocateAndList's walk to bricks beyond the coordinates a key can name (+-512 bricks
+  // from the origin): surface out of the volume's reach, not fused.
+  uint32_t out_of_range = 0;
 };
 
 // A brick table on the device: `capacity` entries (a power of two, at least twice the pool, so
