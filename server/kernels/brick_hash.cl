@@ -60,6 +60,23 @@ __kernel void vd_brick_pool_move(__global const uint* keep, __global const uint*
   vd_brick_pool_move_lane(v, keep, offsets, used, tsdf, weight, color);
 }
 
+/* One work item per voxel of `count` slots from `first`: their deformation at rest (after the
+ * table handed them out, so their keys are written). */
+__kernel void vd_brick_field_rest(__global const uint* slot_keys, int first, float voxel_size, __global float4* def_pos,
+                                  __global float4* def_rot, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  vd_pool_field_rest(slot_keys, first * VD_BRICK_VOXELS + i, voxel_size, def_pos, def_rot);
+}
+
+/* One work item per voxel lane (512): the kept bricks' deformation moves to their compacted slots. */
+__kernel void vd_brick_field_move(__global const uint* keep, __global const uint* offsets, int used,
+                                  __global float4* def_pos, __global float4* def_rot, int vd_items) {
+  int v = get_global_id(0);
+  if (v >= vd_items) return;
+  vd_brick_field_move_lane(v, keep, offsets, used, def_pos, def_rot);
+}
+
 /* One work item per depth tile: lists the bricks its band reaches, once each per frame. */
 __kernel void vd_brick_table_list(__global const float* depth, VdCamera cam, VdPose cam_to_world, float truncation,
                                   float brick_size, __global uint* keys, __global int* slots, uint capacity,

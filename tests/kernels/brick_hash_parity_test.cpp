@@ -16,6 +16,7 @@
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/brick_hash_ocl.h"
 #include "ocl/device_ops.h"
+#include "shared/deformation.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -521,6 +522,84 @@ TEST(BrickHashParityTest, EvictionDropsTheBricksListedLongestAgoAndMovesThePool)
   }
   EXPECT_TRUE(std::all_of(t_after.begin() + n_kept, t_after.end(), [](float v) { return v == 1.f; }));
   EXPECT_TRUE(std::all_of(w_after.begin() + n_kept, w_after.end(), [](float v) { return v == 0.f; }));
+}
+
+// The deformation field on the pool: slots handed out are put at rest from their keys (against the
+// CPU, and the dense grid's rest positions on the same lattice), growing keeps it, compaction moves
+// it with the bricks.
+TEST(BrickHashParityTest, TheFieldStartsAtRestAndMovesWithItsBricks) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const VdCamera cam = test::TestCamera(160, 120);
+  const std::vector<float> depth = test::SphereDepth(cam, 0.8f, 0.2f, 1.2f);
+  ocl::Buffer<float> dd = test::ToDevice(ctx, depth);
+  const float voxel = 0.008f, trunc = 0.032f;
+  auto table = ocl::BrickTable::Create(*ctx, 1 << 11);
+  ASSERT_TRUE(table.ok());
+  ASSERT_TRUE(table->AllocateAndList(*ctx, dd, cam, test::IdentityPose(), trunc, VD_BRICK * voxel).ok());
+  auto counts = table->Counts(*ctx);
+  ASSERT_TRUE(counts.ok());
+  const uint32_t used = counts->used;
+  ASSERT_GT(used, 100u);
+  auto pool = ocl::BrickPool::Create(*ctx, used / 2, true);
+  ASSERT_TRUE(pool.ok());
+  // Too few slots yet: refused; grown, the first half then the rest put at rest.
+  EXPECT_EQ(pool->RestField(*ctx, *table, 0, used, voxel).code(), StatusCode::kOutOfRange);
+  ASSERT_TRUE(pool->RestField(*ctx, *table, 0, used / 2, voxel).ok());
+  ASSERT_TRUE(pool->Grow(*ctx, used).ok());
+  ASSERT_TRUE(pool->RestField(*ctx, *table, used / 2, used - used / 2, voxel).ok());
+  const size_t n = size_t(used) * VD_BRICK_VOXELS;
+  std::vector<vd_float4> pos = test::FromDevice(ctx, pool->def_pos, n), rot = test::FromDevice(ctx, pool->def_rot, n);
+  const cpu::BrickTable ref = [&] {
+    cpu::BrickTable t(table->capacity(), table->pool());
+    t.keys = test::FromDevice(ctx, table->keys(), table->capacity());
+    t.slots = test::FromDevice(ctx, table->slots(), table->capacity());
+    t.slot_keys = test::FromDevice(ctx, table->slot_keys(), table->pool());
+    t.counters[VD_BRICK_COUNT_TAKEN] = used;
+    return t;
+  }();
+  std::vector<vd_float4> rp(n), rr(n);
+  for (size_t i = 0; i < n; ++i) vd_pool_field_rest(ref.slot_keys.data(), int(i), voxel, rp.data(), rr.data());
+  EXPECT_EQ(test::Flatten(pos), test::Flatten(rp));
+  EXPECT_EQ(test::Flatten(rot), test::Flatten(rr));
+  // The dense grid's rest position of the same point, its origin on the lattice.
+  VdVolume dense{};
+  dense.voxel_size = voxel;
+  dense.origin = VD_F4(-80 * voxel, -80 * voxel, 0.f, 1.f);
+  for (size_t i = 0; i < n; i += 997) {
+    int g[3];
+    vd_brick_voxel(ref.slot_keys[i / VD_BRICK_VOXELS], int(i % VD_BRICK_VOXELS), &g[0], &g[1], &g[2]);
+    const vd_float4 d = vd_rest_position(dense, g[0] + 80, g[1] + 80, g[2]);
+    EXPECT_NEAR(d.x, pos[i].x, 1e-6f);
+    EXPECT_NEAR(d.y, pos[i].y, 1e-6f);
+    EXPECT_NEAR(d.z, pos[i].z, 1e-6f);
+    EXPECT_EQ(pos[i].w, 0.f);
+  }
+  // A deformed field, then compaction: every kept brick's field goes with it (against the CPU).
+  for (size_t i = 0; i < n; ++i) {
+    pos[i].x += 1e-4f * float(i % 7);
+    pos[i].w = float(i % 5);
+    rot[i] = VD_F4(0.f, 0.f, std::sin(1e-3f * float(i % 11)), std::cos(1e-3f * float(i % 11)));
+  }
+  ASSERT_TRUE(ctx->Upload(pool->def_pos, pos.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(pool->def_rot, rot.data(), n).ok());
+  std::vector<uint32_t> keep(table->pool(), 0u);
+  for (uint32_t sl = 0; sl < used; ++sl) keep[sl] = sl % 3 != 1;
+  ocl::Buffer<uint32_t> dkeep = test::ToDevice(ctx, keep);
+  ASSERT_TRUE(table->Compact(ops, dkeep, &*pool).ok());
+  cpu::BrickFieldMove(keep.data(), used, pos.data(), rot.data());
+  uint32_t kept = 0;
+  for (uint32_t sl = 0; sl < used; ++sl) kept += keep[sl];
+  const size_t nk = size_t(kept) * VD_BRICK_VOXELS;
+  EXPECT_EQ(test::Flatten(test::FromDevice(ctx, pool->def_pos, nk)),
+            test::Flatten(std::vector<vd_float4>(pos.begin(), pos.begin() + nk)));
+  EXPECT_EQ(test::Flatten(test::FromDevice(ctx, pool->def_rot, nk)),
+            test::Flatten(std::vector<vd_float4>(rot.begin(), rot.begin() + nk)));
+  // A pool without a field ignores RestField.
+  auto plain = ocl::BrickPool::Create(*ctx, 4);
+  ASSERT_TRUE(plain.ok());
+  EXPECT_TRUE(plain->RestField(*ctx, *table, 0, 100, voxel).ok());
 }
 
 TEST(BrickHashParityTest, BadArgumentsAreRefused) {

@@ -55,4 +55,34 @@ VD_INLINE void vd_brick_pool_move_lane(int v, VD_GLOBAL const vd_uint* keep, VD_
   }
 }
 
+/* The deformation field on the pool (shared/deformation.h's t_i and R_i, one per pool voxel; issue
+ * 17, docs/SPARSE_VOLUME.md): positions in world metres, which for the bricks (tiling space from the
+ * world origin) start at the voxel size times the global grid coordinates. */
+
+/* Rest position of pool voxel `index` (w = 0: never optimised). */
+VD_INLINE vd_float4 vd_pool_rest_position(VD_GLOBAL const vd_uint* slot_keys, int index, float voxel_size) {
+  int gx, gy, gz;
+  vd_brick_voxel(slot_keys[index / VD_BRICK_VOXELS], index % VD_BRICK_VOXELS, &gx, &gy, &gz);
+  return VD_F4(voxel_size * (float)gx, voxel_size * (float)gy, voxel_size * (float)gz, 0.0f);
+}
+
+/* Puts pool voxel `index`'s deformation at rest: its rest position, the identity rotation. */
+VD_INLINE void vd_pool_field_rest(VD_GLOBAL const vd_uint* slot_keys, int index, float voxel_size,
+                                  VD_GLOBAL vd_float4* def_pos, VD_GLOBAL vd_float4* def_rot) {
+  def_pos[index] = vd_pool_rest_position(slot_keys, index, voxel_size);
+  def_rot[index] = VD_F4(0.0f, 0.0f, 0.0f, 1.0f);
+}
+
+/* vd_brick_pool_move_lane for the field: voxel v of every kept brick to its compacted slot. */
+VD_INLINE void vd_brick_field_move_lane(int v, VD_GLOBAL const vd_uint* keep, VD_GLOBAL const vd_uint* offsets,
+                                        int used, VD_GLOBAL vd_float4* def_pos, VD_GLOBAL vd_float4* def_rot) {
+  for (int s = 0; s < used; ++s) {
+    int d = (int)offsets[s];
+    if (!keep[s] || d == s) continue;
+    int from = s * VD_BRICK_VOXELS + v, to = d * VD_BRICK_VOXELS + v;
+    def_pos[to] = def_pos[from];
+    def_rot[to] = def_rot[from];
+  }
+}
+
 #endif /* VD_SPARSE_TSDF_H */

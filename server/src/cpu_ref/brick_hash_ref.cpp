@@ -101,6 +101,17 @@ void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visibl
                               rgba);
 }
 
+void BrickFieldMove(const uint32_t* keep, uint32_t used, vd_float4* def_pos, vd_float4* def_rot) {
+  std::vector<uint32_t> offsets(used);
+  uint32_t kept = 0;
+  for (uint32_t s = 0; s < used; ++s) {
+    offsets[s] = kept;
+    kept += keep[s] ? 1u : 0u;
+  }
+  for (int v = 0; v < VD_BRICK_VOXELS; ++v)
+    vd_brick_field_move_lane(v, keep, offsets.data(), int(used), def_pos, def_rot);
+}
+
 std::vector<int32_t> BrickNeighbours(const BrickTable& t, uint32_t used) {
   std::vector<int32_t> nbr(size_t(VD_BRICK_NEIGHBOURS) * t.pool, 0);
   for (uint32_t s = 0; s < used; ++s)

@@ -45,6 +45,8 @@ void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visibl
 // Moves the kept bricks' voxels (512 per slot of tsdf, weight, colour) to their compacted slots, as
 // the device's vd_brick_pool_move does, for the first `used` slots.
 void BrickPoolMove(const uint32_t* keep, uint32_t used, float* tsdf, float* weight, uint32_t* color);
+// The field's moves of the same compaction (vd_brick_field_move_lane).
+void BrickFieldMove(const uint32_t* keep, uint32_t used, vd_float4* def_pos, vd_float4* def_rot);
 // The 27 neighbour slots of each of the first `used` slots (VD_BRICK_NEIGHBOURS per slot).
 std::vector<int32_t> BrickNeighbours(const BrickTable& table, uint32_t used);
 // Marching cubes over the first `used` slots of a pool (shared/sparse_mesh.h), in the device's

@@ -139,6 +139,9 @@ Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep, BrickPo
   if (pool && before.used > 0) {
     VD_RETURN_IF_ERROR(kBrickPoolMove(ctx, VD_BRICK_VOXELS, keep, offsets_, int32_t(before.used), pool->tsdf,
                                       pool->weight, pool->color));
+    if (pool->with_field)
+      VD_RETURN_IF_ERROR(
+          kBrickFieldMove(ctx, VD_BRICK_VOXELS, keep, offsets_, int32_t(before.used), pool->def_pos, pool->def_rot));
     // Slots kept..used-1 are free again: new bricks there start at rest.
     const size_t from = size_t(kept) * VD_BRICK_VOXELS, n = size_t(before.used - kept) * VD_BRICK_VOXELS;
     VD_RETURN_IF_ERROR(ctx.Fill(pool->tsdf, 1.0f, n, from));
@@ -191,9 +194,10 @@ Status BrickTable::BuildNeighbours(Context& ctx, uint32_t used) {
   return kBrickNeighbours(ctx, used, slot_keys_, keys_, slots_, capacity_, neighbours_);
 }
 
-StatusOr<BrickPool> BrickPool::Create(Context& ctx, uint32_t slots) {
+StatusOr<BrickPool> BrickPool::Create(Context& ctx, uint32_t slots, bool with_field) {
   if (slots == 0) return InvalidArgument("a brick pool needs at least one slot");
   BrickPool p;
+  p.with_field = with_field;
   VD_RETURN_IF_ERROR(p.Grow(ctx, slots));
   return p;
 }
@@ -212,8 +216,22 @@ Status BrickPool::Grow(Context& ctx, uint32_t new_slots) {
   VD_RETURN_IF_ERROR(grow(tsdf, 1.0f));
   VD_RETURN_IF_ERROR(grow(weight, 0.0f));
   VD_RETURN_IF_ERROR(grow(color, 0u));
+  if (with_field) {
+    // The new slots' rest positions are not known before the table hands them out (RestField).
+    VD_RETURN_IF_ERROR(grow(def_pos, vd_float4{0.f, 0.f, 0.f, 0.f}));
+    VD_RETURN_IF_ERROR(grow(def_rot, vd_float4{0.f, 0.f, 0.f, 1.f}));
+  }
   slots = new_slots;
   return Status::Ok();
+}
+
+Status BrickPool::RestField(Context& ctx, const BrickTable& table, uint32_t first, uint32_t count, float voxel_size) {
+  if (!with_field || count == 0) return Status::Ok();
+  if (uint64_t(first) + count > slots || uint64_t(first) + count > table.pool())
+    return OutOfRange("slots " + std::to_string(first) + ".." + std::to_string(first + count) +
+                      " are past the pool's " + std::to_string(slots));
+  return kBrickFieldRest(ctx, size_t(count) * VD_BRICK_VOXELS, table.slot_keys(), int32_t(first), voxel_size, def_pos,
+                         def_rot);
 }
 
 Status BrickPool::Reset(Context& ctx) {

@@ -56,6 +56,14 @@ inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam, VdPose ca
                              Buffer<uint32_t>& stamp, uint32_t frame, Buffer<int32_t>& visible,
                              Buffer<uint32_t>& counters)>
     kBrickList{"vd_brick_table_list"};
+// One item per voxel of the slots put at rest.
+inline constexpr Kernel<void(const Buffer<uint32_t>& slot_keys, int32_t first, float voxel_size,
+                             Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot)>
+    kBrickFieldRest{"vd_brick_field_rest"};
+// One item per voxel lane (VD_BRICK_VOXELS).
+inline constexpr Kernel<void(const Buffer<uint32_t>& keep, const Buffer<uint32_t>& offsets, int32_t used,
+                             Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot)>
+    kBrickFieldMove{"vd_brick_field_move"};
 // Laned, one item per voxel of the listed bricks.
 inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf,
                              Buffer<float>& weight, Buffer<uint32_t>& color, VdVolume vol, VdCamera cam,
@@ -163,9 +171,16 @@ class BrickTable {
 struct BrickPool {
   Buffer<float> tsdf, weight;
   Buffer<uint32_t> color;
+  // The deformation field (shared/sparse_tsdf.h: t_i in world metres, R_i as a quaternion), one per
+  // voxel, with_field only: 44 bytes a voxel with it, 12 without.
+  Buffer<vd_float4> def_pos, def_rot;
+  bool with_field = false;
   uint32_t slots = 0;
   // A pool of `slots` bricks at rest.
-  static StatusOr<BrickPool> Create(Context& ctx, uint32_t slots);
+  static StatusOr<BrickPool> Create(Context& ctx, uint32_t slots, bool with_field = false);
+  // Puts the deformation of slots [first, first + count) at rest (their rest positions come from
+  // their keys: call it once the table has handed them out). A no-op without a field.
+  Status RestField(Context& ctx, const BrickTable& table, uint32_t first, uint32_t count, float voxel_size);
   // Grows to `slots` bricks (no-op when it holds as many), keeping the bricks it has; the new ones
   // start at rest.
   Status Grow(Context& ctx, uint32_t slots);
