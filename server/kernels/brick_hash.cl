@@ -1,4 +1,4 @@
-#include "shared/sparse_mesh.h"
+#include "shared/sparse_field.h"
 
 /* The brick table of the sparse volume (shared/brick_hash.h) and fusion into its pool
  * (shared/sparse_tsdf.h). slot_keys: the key of each pool slot's brick (VD_BRICK_EMPTY: none). */
@@ -187,4 +187,27 @@ __kernel void vd_brick_neighbours(__global const uint* slot_keys, __global const
   int s = get_global_id(0);
   if (s >= vd_items) return;
   vd_brick_neighbours_of(s, slot_keys, keys, slots, capacity, nbr);
+}
+
+/* The field on the pool: extrapolation of members never optimised (committed by
+ * vd_extrapolate_commit, which takes pool indices as it takes grid indices), and the deformed
+ * positions of the vertices of the mesh over the bricks. */
+__kernel void vd_sparse_extrapolate(__global const int* list, __global const int* nbr, __global const float4* def_pos,
+                                    __global const float4* def_rot, float voxel_size, __global float4* pos_out,
+                                    __global float4* rot_out, int vd_items) {
+  int k = get_global_id(0);
+  if (k >= vd_items) return;
+  float4 p, r;
+  vd_sparse_extrapolate_point(list[k], nbr, def_pos, def_rot, voxel_size, &p, &r);
+  pos_out[k] = p;
+  rot_out[k] = r;
+}
+
+__kernel void vd_sparse_deform_vertices(__global const float4* grid_pos, __global const uint* keys,
+                                        __global const int* slots, uint capacity, __global const int* nbr,
+                                        __global const float4* def_pos, float voxel_size, __global float4* out,
+                                        int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  out[i] = vd_sparse_deform_point(grid_pos[i], keys, slots, capacity, nbr, def_pos, voxel_size);
 }

@@ -63,10 +63,11 @@ struct FusedBricks {
   }
 };
 
-// The sphere scene at 8 mm fused `frames` times into a fresh table and pool (the camera about 5 cm
+// The sphere scene at 8 mm fused `frames` times into a fresh table and pool (with_field: with a
+// deformation field at rest) (the camera about 5 cm
 // right, 10 cm up and 20 cm forward of the world origin: not round numbers, since with them whole
 // slices of voxels project exactly onto pixel boundaries).
-inline void FuseSphere(ocl::Context* ctx, int frames, FusedBricks* f) {
+inline void FuseSphere(ocl::Context* ctx, int frames, FusedBricks* f, bool with_field = false) {
   f->cam_to_world.r0.w = 0.0513f, f->cam_to_world.r1.w = -0.1037f, f->cam_to_world.r2.w = 0.2071f;
   f->world_to_cam.r0.w = -0.0513f, f->world_to_cam.r1.w = 0.1037f, f->world_to_cam.r2.w = -0.2071f;
   f->vol.voxel_size = 0.008f;
@@ -80,9 +81,12 @@ inline void FuseSphere(ocl::Context* ctx, int frames, FusedBricks* f) {
   f->dd = ToDevice(ctx, f->depth);
   f->dc = ToDevice(ctx, f->rgba);
   ASSERT_TRUE(f->table->AllocateFromDepth(*ctx, f->dd, f->cam, f->cam_to_world, f->vol.truncation, f->brick).ok());
-  auto pool = ocl::BrickPool::Create(*ctx, f->table->pool());
+  auto pool = ocl::BrickPool::Create(*ctx, f->table->pool(), with_field);
   ASSERT_TRUE(pool.ok());
   f->pool = std::move(pool).value();
+  auto allocated = f->table->Counts(*ctx);
+  ASSERT_TRUE(allocated.ok());
+  ASSERT_TRUE(f->pool->RestField(*ctx, *f->table, 0, allocated->used, f->vol.voxel_size).ok());
   for (int frame = 0; frame < frames; ++frame) {
     ASSERT_TRUE(f->table->ListVisible(*ctx, f->dd, f->cam, f->cam_to_world, f->vol.truncation, f->brick).ok());
     ASSERT_TRUE(ocl::IntegrateBricks(*ctx, *f->table, *f->pool, f->vol, f->cam, f->world_to_cam, f->dd, f->dc).ok());

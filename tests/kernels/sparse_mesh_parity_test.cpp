@@ -13,6 +13,7 @@
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/device_ops.h"
 #include "shared/solver.h"
+#include "shared/sparse_field.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -210,6 +211,104 @@ TEST(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
   EXPECT_TRUE(sparse_members.empty()) << sparse_members.size() << " members the dense grid does not have";
   EXPECT_LE(only_dense - unallocated, 8u * 7u);
   EXPECT_LT(only_dense, da.list.size() / 50);
+}
+
+// The field on the pool: extrapolation of the active points never optimised and the deformed mesh,
+// against the CPU exactly and against the dense grid's field holding the same values on the same
+// lattice.
+TEST(SparseMeshParityTest, FieldExtrapolationAndDeformedMeshMatchTheCpuAndTheDenseGrid) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  test::FusedBricks f;
+  test::FuseSphere(ctx, 2, &f, /*with_field=*/true);
+  if (HasFatalFailure()) return;
+  DeviceMesh mesh;
+  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &mesh).ok());
+  DeviceActiveSet active;
+  ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
+  const size_t m = active.count, n = size_t(f.counts.used) * VD_BRICK_VOXELS, nv = mesh.num_vertices;
+  const cpu::BrickTable ref = f.Reference(ctx);
+  const std::vector<int32_t> list = test::FromDevice(ctx, active.list, m);
+  // A field: a small twist about the z axis on every third member (optimised, w = 1); the others
+  // never optimised (w = 0, at rest).
+  std::vector<vd_float4> pos = test::FromDevice(ctx, f.pool->def_pos, n),
+                         rot = test::FromDevice(ctx, f.pool->def_rot, n);
+  for (size_t k = 0; k < m; k += 3) {
+    const int v = list[k];
+    const float a = 0.05f * pos[v].z;
+    pos[v] = VD_F4(std::cos(a) * pos[v].x - std::sin(a) * pos[v].y, std::sin(a) * pos[v].x + std::cos(a) * pos[v].y,
+                   pos[v].z + 0.002f, 1.f);
+    rot[v] = VD_F4(0.f, 0.f, std::sin(a / 2), std::cos(a / 2));
+  }
+  ASSERT_TRUE(ctx->Upload(f.pool->def_pos, pos.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(f.pool->def_rot, rot.data(), n).ok());
+  ASSERT_TRUE(ops.Extrapolate(*f.table, *f.pool, active, f.vol.voxel_size).ok());
+  ASSERT_TRUE(ops.DeformVertices(*f.table, *f.pool, f.vol.voxel_size, &mesh).ok());
+  const std::vector<vd_float4> dpos = test::FromDevice(ctx, f.pool->def_pos, n),
+                               drot = test::FromDevice(ctx, f.pool->def_rot, n),
+                               live = test::FromDevice(ctx, mesh.positions, nv),
+                               grid = test::FromDevice(ctx, mesh.positions_grid, nv);
+
+  // CPU: the same shared functions, computed all first, then committed.
+  const std::vector<int32_t> nbr = cpu::BrickNeighbours(ref, f.counts.used);
+  std::vector<vd_float4> cp = pos, cr = rot, ep(m), er(m);
+  for (size_t k = 0; k < m; ++k)
+    vd_sparse_extrapolate_point(list[k], nbr.data(), pos.data(), rot.data(), f.vol.voxel_size, &ep[k], &er[k]);
+  size_t initialised = 0;
+  for (size_t k = 0; k < m; ++k) {
+    initialised += !(pos[list[k]].w > 0.f) && (ep[k].x != pos[list[k]].x || ep[k].y != pos[list[k]].y);
+    cp[list[k]] = ep[k];
+    cr[list[k]] = er[k];
+  }
+  EXPECT_GT(initialised, m / 3);
+  EXPECT_TRUE(test::AllClose(test::Flatten(dpos), test::Flatten(cp), 1e-6f, 0.f));
+  EXPECT_TRUE(test::AllClose(test::Flatten(drot), test::Flatten(cr), 1e-6f, 0.f));
+  std::vector<vd_float4> clive(nv);
+  for (size_t i = 0; i < nv; ++i)
+    clive[i] = vd_sparse_deform_point(grid[i], ref.keys.data(), ref.slots.data(), ref.capacity, nbr.data(), cp.data(),
+                                      f.vol.voxel_size);
+  EXPECT_TRUE(test::AllClose(test::Flatten(live), test::Flatten(clive), 1e-6f, 0.f));
+
+  // The dense grid's field with the same values (at rest elsewhere), extrapolated and deforming the
+  // same vertices (in its grid units).
+  std::vector<float> dt, dw;
+  std::vector<uint32_t> dc;
+  int lo[3];
+  VdVolume dense = f.DenseOver(ref, 2, &dt, &dw, &dc, lo);
+  const size_t nd = size_t(dense.dim_x) * dense.dim_y * dense.dim_z;
+  std::vector<vd_float4> gpos(nd), grot(nd, VD_F4(0.f, 0.f, 0.f, 1.f));
+  for (int z = 0; z < dense.dim_z; ++z)
+    for (int y = 0; y < dense.dim_y; ++y)
+      for (int x = 0; x < dense.dim_x; ++x) gpos[vd_grid_index(dense, x, y, z)] = vd_rest_position(dense, x, y, z);
+  auto dense_index = [&](int v) {
+    int g[3];
+    vd_brick_voxel(ref.slot_keys[v / VD_BRICK_VOXELS], v % VD_BRICK_VOXELS, &g[0], &g[1], &g[2]);
+    return vd_grid_index(dense, g[0] - lo[0], g[1] - lo[1], g[2] - lo[2]);
+  };
+  for (size_t v = 0; v < n; ++v) {
+    gpos[dense_index(int(v))] = pos[v];
+    grot[dense_index(int(v))] = rot[v];
+  }
+  std::vector<int32_t> dense_list(m);
+  for (size_t k = 0; k < m; ++k) dense_list[k] = dense_index(list[k]);
+  cpu::Extrapolate(dense_list.data(), int(m), gpos.data(), grot.data(), dense);
+  size_t worst_k = 0;
+  float worst = 0.f;
+  for (size_t k = 0; k < m; ++k) {
+    const vd_float4 a = dpos[list[k]], b = gpos[dense_list[k]];
+    const float d = std::max({std::fabs(a.x - b.x), std::fabs(a.y - b.y), std::fabs(a.z - b.z)});
+    if (d > worst) worst = d, worst_k = k;
+  }
+  EXPECT_LT(worst, 1e-5f) << "member " << worst_k;
+  float worst_live = 0.f;
+  for (size_t i = 0; i < nv; ++i) {
+    const vd_float4 g = VD_F4(grid[i].x - lo[0], grid[i].y - lo[1], grid[i].z - lo[2], 1.f);
+    const vd_float4 b = vd_deform_point(g, gpos.data(), dense);
+    worst_live =
+        std::max({worst_live, std::fabs(live[i].x - b.x), std::fabs(live[i].y - b.y), std::fabs(live[i].z - b.z)});
+  }
+  EXPECT_LT(worst_live, 1e-5f);
 }
 
 TEST(SparseMeshParityTest, AnEmptyPoolGivesAnEmptyMesh) {

@@ -44,6 +44,13 @@ VD_INLINE vd_float4 vd_deform_point(vd_float4 g, VD_GLOBAL const vd_float4* def_
   return acc;
 }
 
+/* Where optimised neighbour j (position t, rotation r), at offset (dx, dy, dz) voxels from a point,
+ * puts that point as a rigid piece: t_j + R_j (t^_i - t^_j). */
+VD_INLINE vd_float4 vd_extrapolate_prediction(vd_float4 t, vd_float4 r, int dx, int dy, int dz, float voxel_size) {
+  vd_float4 edge = VD_F4(-(float)dx * voxel_size, -(float)dy * voxel_size, -(float)dz * voxel_size, 0.0f);
+  return t + vd_quat_rotate(r, edge);
+}
+
 /* A grid point entering the active set for the first time (never optimised: w == 0) starts where
  * its optimised 26-neighbours j put it as rigid pieces, the mean of t_j + R_j (t^_i - t^_j) (the
  * ARAP prior's own prediction), with the rotation of the first such neighbour. Moving it by their
@@ -68,8 +75,7 @@ VD_INLINE int vd_extrapolate_point(int gi, VD_GLOBAL const vd_float4* def_pos, V
     int j = nx + vol.dim_x * (ny + vol.dim_y * nz);
     vd_float4 t = def_pos[j];
     if (!(t.w > 0.0f)) continue;
-    vd_float4 edge = VD_F4(-(float)dx * vol.voxel_size, -(float)dy * vol.voxel_size, -(float)dz * vol.voxel_size, 0.0f);
-    disp = disp + t + vd_quat_rotate(def_rot[j], edge);
+    disp = disp + vd_extrapolate_prediction(t, def_rot[j], dx, dy, dz, vol.voxel_size);
     n += 1.0f;
     if (first < 0) first = j;
   }

@@ -5,7 +5,7 @@
 #include <cstdint>
 
 #include "ocl/kernel.h"
-#include "shared/sparse_mesh.h"
+#include "shared/sparse_field.h"
 
 namespace vd {
 class DeviceOps;
@@ -64,6 +64,16 @@ inline constexpr Kernel<void(const Buffer<uint32_t>& slot_keys, int32_t first, f
 inline constexpr Kernel<void(const Buffer<uint32_t>& keep, const Buffer<uint32_t>& offsets, int32_t used,
                              Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot)>
     kBrickFieldMove{"vd_brick_field_move"};
+// One item per active point (pool indices in list).
+inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& def_pos,
+                             const Buffer<vd_float4>& def_rot, float voxel_size, Buffer<vd_float4>& pos_out,
+                             Buffer<vd_float4>& rot_out)>
+    kSparseExtrapolate{"vd_sparse_extrapolate"};
+// One item per vertex.
+inline constexpr Kernel<void(const Buffer<vd_float4>& grid_pos, const Buffer<uint32_t>& keys,
+                             const Buffer<int32_t>& slots, uint32_t capacity, const Buffer<int32_t>& nbr,
+                             const Buffer<vd_float4>& def_pos, float voxel_size, Buffer<vd_float4>& out)>
+    kSparseDeformVertices{"vd_sparse_deform_vertices"};
 // Laned, one item per voxel of the listed bricks.
 inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf,
                              Buffer<float>& weight, Buffer<uint32_t>& color, VdVolume vol, VdCamera cam,

@@ -117,6 +117,13 @@ class DeviceOps {
   Status TransformField(DeviceVolume& v, const VdPose& a, vd_float4 q_a);
   // Initialises members of M never optimised from their optimised neighbours as rigid pieces.
   Status Extrapolate(DeviceVolume& v, const DeviceActiveSet& active);
+  // The same on a sparse volume's field (M over the pool: BuildActiveSet(table, ...), which also
+  // leaves the table's neighbours built).
+  Status Extrapolate(const ocl::BrickTable& table, ocl::BrickPool& pool, const DeviceActiveSet& active,
+                     float voxel_size);
+  // positions = S(positions_grid) through a sparse volume's field (positions_grid in global grid
+  // coordinates, as MarchingCubes(table, pool, ...) emits them; the table's neighbours built).
+  Status DeformVertices(const ocl::BrickTable& table, const ocl::BrickPool& pool, float voxel_size, DeviceMesh* mesh);
   // Non-rigid fusion into the members of M optimised at least fp.k_min times (fp.k_min_new for those
   // never fused yet), at their deformed positions, with carving (shared/tsdf.h).
   Status IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, const VdFusionParams& fp, VdCamera cam,

@@ -4,6 +4,7 @@
 #include <algorithm>
 
 #include "ocl/brick_hash_ocl.h"
+#include "ocl/deformation_ocl.h"
 #include "ocl/device_ops.h"
 
 namespace vd {
@@ -69,6 +70,26 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   VD_RETURN_IF_ERROR(
       ocl::kSparseActiveCompact(*ctx_, rows, active_member_, active_row_offset_, out->list, out->compact));
   return ocl::kSparseActiveNeighbours(*ctx_, total, out->list, out->compact, nbr, out->neighbours);
+}
+
+Status DeviceOps::Extrapolate(const ocl::BrickTable& table, ocl::BrickPool& pool, const DeviceActiveSet& active,
+                              float voxel_size) {
+  if (!pool.with_field) return FailedPrecondition("Extrapolate needs a brick pool with a deformation field");
+  if (active.count == 0) return Status::Ok();
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_pos_, active.count));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&extrapolated_rot_, active.count));
+  VD_RETURN_IF_ERROR(ocl::kSparseExtrapolate(*ctx_, active.count, active.list, table.neighbours(), pool.def_pos,
+                                             pool.def_rot, voxel_size, extrapolated_pos_, extrapolated_rot_));
+  return ocl::kExtrapolateCommit(*ctx_, active.count, active.list, extrapolated_pos_, extrapolated_rot_, pool.def_pos,
+                                 pool.def_rot);
+}
+
+Status DeviceOps::DeformVertices(const ocl::BrickTable& table, const ocl::BrickPool& pool, float voxel_size,
+                                 DeviceMesh* mesh) {
+  if (!pool.with_field) return FailedPrecondition("DeformVertices needs a brick pool with a deformation field");
+  if (mesh->num_vertices == 0) return Status::Ok();
+  return ocl::kSparseDeformVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, table.keys(), table.slots(),
+                                    table.capacity(), table.neighbours(), pool.def_pos, voxel_size, mesh->positions);
 }
 
 }  // namespace vd

@@ -1,0 +1,70 @@
+/* The deformation field on the brick pool (issue 17; docs/SPARSE_VOLUME.md): shared/deformation.h's
+ * operations with pool voxel indices (slot * 512 + local) for grid indices. Neighbours across brick
+ * faces come through the per-brick neighbour table (shared/sparse_mesh.h); a canonical point's cell
+ * through the hash once, for its base corner's brick. */
+#ifndef VD_SPARSE_FIELD_H
+#define VD_SPARSE_FIELD_H
+
+#include "deformation.h"
+#include "sparse_mesh.h"
+
+/* vd_extrapolate_point for pool voxel v: a point never optimised starts where its optimised
+ * 26-neighbours put it as rigid pieces (their mean prediction), with the first one's rotation; a
+ * neighbour in a brick that is not allocated does not count. Returns 1 when it was initialised. */
+VD_INLINE int vd_sparse_extrapolate_point(int v, VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
+                                          VD_GLOBAL const vd_float4* def_rot, float voxel_size, vd_float4* pos_out,
+                                          vd_float4* rot_out) {
+  int slot = v / VD_BRICK_VOXELS, in_brick = v % VD_BRICK_VOXELS;
+  int x = in_brick % VD_BRICK, y = (in_brick / VD_BRICK) % VD_BRICK, z = in_brick / VD_BRICK_ROWS;
+  *pos_out = def_pos[v];
+  *rot_out = def_rot[v];
+  if (def_pos[v].w > 0.0f) return 0;
+  vd_float4 disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  float n = 0.0f;
+  int first = -1;
+  for (int k = 0; k < 27; ++k) {
+    int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
+    if (k == 13) continue;
+    int j = vd_brick_voxel_at(nbr, slot, x + dx, y + dy, z + dz);
+    if (j < 0) continue;
+    vd_float4 t = def_pos[j];
+    if (!(t.w > 0.0f)) continue;
+    disp = disp + vd_extrapolate_prediction(t, def_rot[j], dx, dy, dz, voxel_size);
+    n += 1.0f;
+    if (first < 0) first = j;
+  }
+  if (n == 0.0f) return 0;
+  vd_float4 p = disp / n;
+  p.w = 0.0f;
+  *pos_out = p;
+  *rot_out = def_rot[first];
+  return 1;
+}
+
+/* S(x) for a point in global grid coordinates g (as marching cubes over the bricks emits vertices):
+ * the trilinear blend of its cell's 8 corners' t_i; a corner whose brick is not allocated holds its
+ * rest position (it was never deformed). w = 1. */
+VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
+                                           vd_uint capacity, VD_GLOBAL const int* nbr,
+                                           VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
+  int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
+  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
+  int bx = (int)floor((float)cx / (float)VD_BRICK), by = (int)floor((float)cy / (float)VD_BRICK),
+      bz = (int)floor((float)cz / (float)VD_BRICK);
+  int slot = vd_brick_coords_valid(bx, by, bz) ? vd_brick_find(keys, slots, capacity, vd_brick_pack(bx, by, bz)) : -1;
+  int lx = cx - VD_BRICK * bx, ly = cy - VD_BRICK * by, lz = cz - VD_BRICK * bz;
+  vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  for (int k = 0; k < 8; ++k) {
+    int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
+    float a = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+    int j = slot >= 0 ? vd_brick_voxel_at(nbr, slot, lx + ox, ly + oy, lz + oz) : -1;
+    vd_float4 t = j >= 0 ? def_pos[j]
+                         : VD_F4(voxel_size * (float)(cx + ox), voxel_size * (float)(cy + oy),
+                                 voxel_size * (float)(cz + oz), 0.0f);
+    acc = acc + t * a;
+  }
+  acc.w = 1.0f;
+  return acc;
+}
+
+#endif /* VD_SPARSE_FIELD_H */
