@@ -143,3 +143,12 @@ __kernel void vd_sparse_active_neighbours(__global const int* list, __global con
   vd_sparse_neighbours_of(compact, nbr, slot, in_brick % VD_BRICK, (in_brick / VD_BRICK) % VD_BRICK,
                           in_brick / VD_BRICK_ROWS, neighbours + 6 * k);
 }
+
+/* One work item per slot in use (the slots it hands out are read by later passes only). */
+__kernel void vd_brick_ring_alloc(__global const uchar* surface, __global const int* nbr, __global uint* keys,
+                                  __global int* slots, __global uint* slot_keys, uint capacity, uint pool,
+                                  __global uint* counters, int vd_items) {
+  int s = get_global_id(0);
+  if (s >= vd_items) return;
+  vd_brick_ring_allocate(s, surface, nbr, keys, slots, slot_keys, capacity, pool, counters);
+}

@@ -12,6 +12,7 @@
 #include "cpu_ref/brick_hash_ref.h"
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/device_ops.h"
+#include "ocl/mc_table.h"
 #include "shared/solver.h"
 #include "shared/sparse_field.h"
 #include "test_scenes.h"
@@ -48,6 +49,18 @@ std::multiset<TriKey> Triangles(const std::vector<vd_float4>& pos, const std::ve
     out.insert(k);
   }
   return out;
+}
+
+std::set<uint32_t> KeySetOf(const cpu::BrickTable& t) {
+  std::set<uint32_t> out;
+  for (uint32_t k : t.keys)
+    if (k != VD_BRICK_EMPTY) out.insert(k);
+  return out;
+}
+std::set<uint32_t> KeySetOf(ocl::Context* ctx, const ocl::BrickTable& t) {
+  cpu::BrickTable c(t.capacity(), t.pool());
+  c.keys = test::FromDevice(ctx, t.keys(), t.capacity());
+  return KeySetOf(c);
 }
 
 TEST(SparseMeshParityTest, NeighbourTableMatchesTheCpu) {
@@ -309,6 +322,78 @@ TEST(SparseMeshParityTest, FieldExtrapolationAndDeformedMeshMatchTheCpuAndTheDen
         std::max({worst_live, std::fabs(live[i].x - b.x), std::fabs(live[i].y - b.y), std::fabs(live[i].z - b.z)});
   }
   EXPECT_LT(worst_live, 1e-5f);
+}
+
+// Allocation for the one-ring: the missing bricks a surface point's 6-neighbour lies in are added
+// (the same keys on the device and the CPU), unobserved, so the mesh does not change and the active
+// set gains exactly the members it had to leave out: it is then the dense grid's.
+TEST(SparseMeshParityTest, RingAllocationCompletesTheActiveSet) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  test::FusedBricks f;
+  test::FuseSphere(ctx, 2, &f);
+  if (HasFatalFailure()) return;
+  DeviceMesh mesh;
+  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &mesh).ok());
+  const size_t nt = mesh.num_triangles;
+  DeviceActiveSet active;
+  ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
+  const size_t m_before = active.count;
+  const uint32_t used = f.counts.used;
+  cpu::BrickTable ref = f.Reference(ctx);
+  // The CPU: surface flags from its own marching cubes, then the ring.
+  const size_t n = size_t(used) * VD_BRICK_VOXELS;
+  const std::vector<float> tsdf = test::FromDevice(ctx, f.pool->tsdf, n),
+                           weight = test::FromDevice(ctx, f.pool->weight, n);
+  const std::vector<uint32_t> color = test::FromDevice(ctx, f.pool->color, n);
+  const cpu::McMesh cm = cpu::SparseMarchingCubes(ref, used, tsdf.data(), weight.data(), color.data());
+  const std::vector<int32_t> nbr = cpu::BrickNeighbours(ref, used);
+  std::vector<uint8_t> surface(n, 0);
+  for (size_t i = 0; i < n; ++i) {
+    const int v = int(i % VD_BRICK_VOXELS);
+    surface[i] =
+        vd_sparse_surface_point(cm.codes.data(), GetMcTable().counts.data(), nbr.data(), int(i / VD_BRICK_VOXELS),
+                                v % VD_BRICK, (v / VD_BRICK) % VD_BRICK, v / VD_BRICK_ROWS);
+  }
+  cpu::BrickRingAllocate(surface.data(), used, &ref);
+
+  auto added = ops.AllocateActiveRing(*f.table);
+  ASSERT_TRUE(added.ok()) << added.status().ToString();
+  std::printf("ring allocation: %u bricks added to %u\n", *added, used);
+  ASSERT_GT(*added, 0u);
+  EXPECT_EQ(KeySetOf(ctx, *f.table), KeySetOf(ref));
+  ASSERT_TRUE(f.pool->Grow(*ctx, used + *added).ok());
+  DeviceMesh again;
+  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &again).ok());
+  EXPECT_EQ(again.num_triangles, nt) << "unobserved bricks add no surface";
+  ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
+  EXPECT_GT(active.count, m_before);
+  // Against the dense grid's set: only the silhouette cell's points (see ActiveSetMatches...) differ.
+  const cpu::BrickTable after = f.Reference(ctx);
+  const std::vector<int32_t> list = test::FromDevice(ctx, active.list, active.count);
+  std::set<std::array<int, 3>> members;
+  for (int32_t v : list) {
+    int g[3];
+    vd_brick_voxel(after.slot_keys[v / VD_BRICK_VOXELS], v % VD_BRICK_VOXELS, &g[0], &g[1], &g[2]);
+    members.insert({g[0], g[1], g[2]});
+  }
+  std::vector<float> dt, dw;
+  std::vector<uint32_t> dc;
+  int lo[3];
+  const VdVolume dense = f.DenseOver(ref, 2, &dt, &dw, &dc, lo);
+  const cpu::McMesh dm = cpu::MarchingCubes(dt.data(), dw.data(), dc.data(), dense);
+  const cpu::ActiveSet da = cpu::BuildActiveSet(dm.codes.data(), dense);
+  size_t only_dense = 0;
+  for (int32_t i : da.list) {
+    int x, y, z;
+    vd_grid_coords(i, dense, &x, &y, &z);
+    only_dense += !members.erase({lo[0] + x, lo[1] + y, lo[2] + z});
+  }
+  EXPECT_TRUE(members.empty()) << members.size();
+  EXPECT_LE(only_dense, 8u * 7u);
+  std::printf("active set after the ring: %zu members (%zu before), %zu of the dense grid's %zu missing\n",
+              size_t(active.count), m_before, only_dense, da.list.size());
 }
 
 TEST(SparseMeshParityTest, AnEmptyPoolGivesAnEmptyMesh) {

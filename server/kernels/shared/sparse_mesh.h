@@ -172,4 +172,39 @@ VD_INLINE void vd_sparse_neighbours_of(VD_GLOBAL const int* compact, VD_GLOBAL c
   }
 }
 
+/* Allocation for the one-ring (issue 17): a surface point on a face of its brick has a 6-neighbour
+ * in the brick across that face, which the active set can hold only if that brick exists. For the
+ * brick in `slot`, every face whose neighbour brick is missing and that holds a surface point gets
+ * that brick allocated (vd_brick_allocate; it starts at rest, unobserved). Returns the failures. */
+VD_INLINE int vd_brick_ring_allocate(int slot, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const int* nbr,
+                                     VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys,
+                                     vd_uint capacity, vd_uint pool, VD_GLOBAL vd_uint* counters) {
+  vd_uint key = slot_keys[slot];
+  if (key == VD_BRICK_EMPTY) return 0;
+  int bx, by, bz;
+  vd_brick_unpack(key, &bx, &by, &bz);
+  int failures = 0;
+  for (int d = 0; d < 6; ++d) {
+    int axis = d >> 1, side = (d & 1) ? 1 : -1;
+    int ox = axis == 0 ? side : 0, oy = axis == 1 ? side : 0, oz = axis == 2 ? side : 0;
+    if (nbr[VD_BRICK_NEIGHBOURS * slot + vd_brick_neighbour_index(ox, oy, oz)] >= 0) continue;
+    /* The face's 64 points: the fixed coordinate is 0 or 7. */
+    int fixed = side > 0 ? VD_BRICK - 1 : 0, any = 0;
+    for (int a = 0; a < VD_BRICK && !any; ++a)
+      for (int b = 0; b < VD_BRICK && !any; ++b) {
+        int x = axis == 0 ? fixed : a, y = axis == 1 ? fixed : (axis == 0 ? a : b), z = axis == 2 ? fixed : b;
+        any = surface[slot * VD_BRICK_VOXELS + x + VD_BRICK * (y + VD_BRICK * z)];
+      }
+    if (!any) continue;
+    if (!vd_brick_coords_valid(bx + ox, by + oy, bz + oz)) {
+      VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
+      ++failures;
+      continue;
+    }
+    failures +=
+        !vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, vd_brick_pack(bx + ox, by + oy, bz + oz));
+  }
+  return failures;
+}
+
 #endif /* VD_SPARSE_MESH_H */

@@ -186,6 +186,13 @@ McMesh SparseMarchingCubes(const BrickTable& t, uint32_t used, const float* tsdf
   return mesh;
 }
 
+void BrickRingAllocate(const uint8_t* surface, uint32_t used, BrickTable* t) {
+  const std::vector<int32_t> nbr = BrickNeighbours(*t, used);
+  for (uint32_t s = 0; s < used; ++s)
+    vd_brick_ring_allocate(int(s), surface, nbr.data(), t->keys.data(), t->slots.data(), t->slot_keys.data(),
+                           t->capacity, t->pool, t->counters);
+}
+
 ActiveSet SparseActiveSet(const BrickTable& t, uint32_t used, const uint16_t* codes) {
   const McTable& table = GetMcTable();
   const std::vector<int32_t> nbr = BrickNeighbours(t, used);

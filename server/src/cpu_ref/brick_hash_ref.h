@@ -55,6 +55,8 @@ std::vector<int32_t> BrickNeighbours(const BrickTable& table, uint32_t used);
 McMesh SparseMarchingCubes(const BrickTable& table, uint32_t used, const float* tsdf, const float* weight,
                            const uint32_t* color);
 
+// vd_brick_ring_allocate for each of the first `used` slots (surface: one flag per pool voxel).
+void BrickRingAllocate(const uint8_t* surface, uint32_t used, BrickTable* table);
 // The active set over the first `used` slots from SparseMarchingCubes' codes: list and compact in
 // pool voxel indices, 6 neighbours per member.
 ActiveSet SparseActiveSet(const BrickTable& table, uint32_t used, const uint16_t* codes);

@@ -80,6 +80,18 @@ Status BrickTable::AllocateAndList(Context& ctx, const Buffer<float>& depth, VdC
   return kBrickEntrySlots(ctx, counts.visible, visible_, slots_, stamp_, frame_, counters_);
 }
 
+StatusOr<uint32_t> BrickTable::AllocateRing(Context& ctx, const Buffer<uint8_t>& surface) {
+  VD_ASSIGN_OR_RETURN(const BrickCounts before, Counts(ctx));
+  if (before.used == 0) return 0u;
+  if (surface.size() < size_t(before.used) * VD_BRICK_VOXELS ||
+      neighbours_.size() < size_t(VD_BRICK_NEIGHBOURS) * before.used)
+    return FailedPrecondition("AllocateRing needs the surface flags and the neighbours of every brick in use");
+  VD_RETURN_IF_ERROR(
+      kBrickRingAlloc(ctx, before.used, surface, neighbours_, keys_, slots_, slot_keys_, capacity_, pool_, counters_));
+  VD_ASSIGN_OR_RETURN(const BrickCounts after, Counts(ctx));
+  return after.used - before.used;
+}
+
 Status BrickTable::Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n) {
   if (keys.size() < n) return InvalidArgument("fewer keys than asked to insert");
   return kBrickInsertKeys(ctx, n, keys, keys_, slots_, slot_keys_, capacity_, pool_, counters_);

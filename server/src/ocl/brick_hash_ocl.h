@@ -32,6 +32,11 @@ inline constexpr Kernel<void(Buffer<int32_t>& visible, const Buffer<int32_t>& sl
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
                              Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool, Buffer<uint32_t>& counters)>
     kBrickInsertKeys{"vd_brick_table_insert"};
+// One item per slot in use.
+inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<int32_t>& nbr, Buffer<uint32_t>& keys,
+                             Buffer<int32_t>& slots, Buffer<uint32_t>& slot_keys, uint32_t capacity, uint32_t pool,
+                             Buffer<uint32_t>& counters)>
+    kBrickRingAlloc{"vd_brick_ring_alloc"};
 // One item per slot restored.
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
                              Buffer<uint32_t>& slot_keys, uint32_t capacity, Buffer<uint32_t>& counters)>
@@ -155,6 +160,11 @@ class BrickTable {
   // VD_BRICK_NEIGHBOURS per slot, -1 where none), for the passes that read across brick faces.
   Status BuildNeighbours(Context& ctx, uint32_t used);
   const Buffer<int32_t>& neighbours() const { return neighbours_; }
+  // Allocates, for each brick, the missing face neighbours that a surface point of it (surface:
+  // one flag per pool voxel, as the active set's first pass writes them) has a 6-neighbour in, so
+  // the active set can hold its one-ring (shared/sparse_mesh.h vd_brick_ring_allocate; after
+  // BuildNeighbours). Returns how many bricks it added.
+  StatusOr<uint32_t> AllocateRing(Context& ctx, const Buffer<uint8_t>& surface);
 
  private:
   uint32_t capacity_ = 0, pool_ = 0;

@@ -133,6 +133,9 @@ class DeviceOps {
   // M over a sparse volume from the last MarchingCubes() call on its bricks: list and compact hold
   // pool voxel indices (slot * 512 + local) for grid indices.
   Status BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out);
+  // Bricks for the one-ring of the surface the last BuildActiveSet(table, ...) found, where their
+  // brick is missing (BrickTable::AllocateRing); how many were added (0: M is whole).
+  StatusOr<uint32_t> AllocateActiveRing(ocl::BrickTable& table);
   Status Rasterize(const DeviceMesh& mesh, VdPose world_to_cam, VdCamera cam, DeviceRaster* out);
   Status IcpReduce(const ocl::Buffer<vd_float4>& vmap, const ocl::Buffer<vd_float4>& nmap,
                    const ocl::Buffer<vd_float4>& model_v, const ocl::Buffer<vd_float4>& model_n, int n,

@@ -72,6 +72,10 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   return ocl::kSparseActiveNeighbours(*ctx_, total, out->list, out->compact, nbr, out->neighbours);
 }
 
+StatusOr<uint32_t> DeviceOps::AllocateActiveRing(ocl::BrickTable& table) {
+  return table.AllocateRing(*ctx_, active_surface_);
+}
+
 Status DeviceOps::Extrapolate(const ocl::BrickTable& table, ocl::BrickPool& pool, const DeviceActiveSet& active,
                               float voxel_size) {
   if (!pool.with_field) return FailedPrecondition("Extrapolate needs a brick pool with a deformation field");
