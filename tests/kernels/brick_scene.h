@@ -25,6 +25,16 @@ struct FusedBricks {
   ocl::BrickCounts counts;
   int frames = 0;
 
+  // The pool's voxels of the slots in use (downloaded).
+  struct Voxels {
+    std::vector<float> tsdf, weight;
+    std::vector<uint32_t> color;
+  };
+  Voxels Download(ocl::Context* ctx) const {
+    const size_t n = size_t(counts.used) * VD_BRICK_VOXELS;
+    return {FromDevice(ctx, pool->tsdf, n), FromDevice(ctx, pool->weight, n), FromDevice(ctx, pool->color, n)};
+  }
+
   // The table as the CPU reference holds it (downloaded).
   cpu::BrickTable Reference(ocl::Context* ctx) const {
     cpu::BrickTable ref(table->capacity(), table->pool());

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <optional>
 #include <set>
 
 #include "brick_scene.h"
@@ -63,7 +64,36 @@ std::set<uint32_t> KeySetOf(ocl::Context* ctx, const ocl::BrickTable& t) {
   return KeySetOf(c);
 }
 
-TEST(SparseMeshParityTest, NeighbourTableMatchesTheCpu) {
+// The sphere fused twice into a fresh pool (with a field at rest) and meshed.
+class SparseMeshParityTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ctx_ = test::SharedContext(&error_);
+    if (!ctx_ && !error_.empty()) FAIL() << error_;
+    if (!ctx_) GTEST_SKIP() << "no OpenCL device (install pocl-opencl-icd; set POCL_CACHE_DIR)";
+    ops_.emplace(ctx_);
+    ASSERT_TRUE(ops_->Init().ok());
+    test::FuseSphere(ctx_, 2, &f_, /*with_field=*/true);
+    if (HasFatalFailure()) return;
+    ASSERT_TRUE(ops_->MarchingCubes(*f_.table, *f_.pool, &mesh_).ok());
+    ref_ = f_.Reference(ctx_);
+    voxels_ = f_.Download(ctx_);
+  }
+  // The CPU's marching cubes over the same pool.
+  cpu::McMesh CpuMesh() const {
+    return cpu::SparseMarchingCubes(ref_, f_.counts.used, voxels_.tsdf.data(), voxels_.weight.data(),
+                                    voxels_.color.data());
+  }
+  std::string error_;
+  ocl::Context* ctx_ = nullptr;
+  std::optional<DeviceOps> ops_;
+  test::FusedBricks f_;
+  DeviceMesh mesh_;
+  cpu::BrickTable ref_{1, 1};
+  test::FusedBricks::Voxels voxels_;
+};
+
+TEST(SparseMeshTest, NeighbourTableMatchesTheCpu) {
   VD_REQUIRE_OCL(ctx);
   test::FusedBricks f;
   test::FuseSphere(ctx, 1, &f);
@@ -92,15 +122,11 @@ TEST(SparseMeshParityTest, NeighbourTableMatchesTheCpu) {
   EXPECT_FALSE(f.table->BuildNeighbours(*ctx, f.table->pool() + 1).ok());
 }
 
-TEST(SparseMeshParityTest, MeshMatchesTheCpuAndTheDenseGrid) {
-  VD_REQUIRE_OCL(ctx);
-  DeviceOps ops(ctx);
-  ASSERT_TRUE(ops.Init().ok());
-  test::FusedBricks f;
-  test::FuseSphere(ctx, 2, &f);
-  if (HasFatalFailure()) return;
-  DeviceMesh mesh;
-  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &mesh).ok());
+TEST_F(SparseMeshParityTest, MeshMatchesTheCpuAndTheDenseGrid) {
+  ocl::Context* ctx = ctx_;
+  DeviceOps& ops = *ops_;
+  test::FusedBricks& f = f_;
+  DeviceMesh& mesh = mesh_;
   ASSERT_GT(mesh.num_triangles, 10000u);
   const size_t nv = mesh.num_vertices, nt = mesh.num_triangles;
   const std::vector<vd_float4> pos = test::FromDevice(ctx, mesh.positions_grid, nv);
@@ -108,12 +134,8 @@ TEST(SparseMeshParityTest, MeshMatchesTheCpuAndTheDenseGrid) {
   const std::vector<uint32_t> col = test::FromDevice(ctx, mesh.colors, nv);
   const std::vector<int32_t> tris = test::FromDevice(ctx, mesh.triangles, 3 * nt);
 
-  const cpu::BrickTable ref = f.Reference(ctx);
-  const size_t n = size_t(f.counts.used) * VD_BRICK_VOXELS;
-  const std::vector<float> tsdf = test::FromDevice(ctx, f.pool->tsdf, n),
-                           weight = test::FromDevice(ctx, f.pool->weight, n);
-  const std::vector<uint32_t> color = test::FromDevice(ctx, f.pool->color, n);
-  const cpu::McMesh cm = cpu::SparseMarchingCubes(ref, f.counts.used, tsdf.data(), weight.data(), color.data());
+  const cpu::BrickTable& ref = ref_;
+  const cpu::McMesh cm = CpuMesh();
   ASSERT_EQ(cm.positions_grid.size(), nv);
   ASSERT_EQ(cm.triangles.size(), 3 * nt);
   EXPECT_EQ(tris, cm.triangles);
@@ -163,15 +185,11 @@ TEST(SparseMeshParityTest, MeshMatchesTheCpuAndTheDenseGrid) {
 
 // The active set over the pool: device against the CPU exactly; against the dense grid's active set
 // over the same lattice, the same points except those whose brick is not allocated.
-TEST(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
-  VD_REQUIRE_OCL(ctx);
-  DeviceOps ops(ctx);
-  ASSERT_TRUE(ops.Init().ok());
-  test::FusedBricks f;
-  test::FuseSphere(ctx, 2, &f);
-  if (HasFatalFailure()) return;
-  DeviceMesh mesh;
-  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &mesh).ok());
+TEST_F(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
+  ocl::Context* ctx = ctx_;
+  DeviceOps& ops = *ops_;
+  test::FusedBricks& f = f_;
+  DeviceMesh& mesh = mesh_;
   DeviceActiveSet active;
   ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
   const size_t m = active.count, n = size_t(f.counts.used) * VD_BRICK_VOXELS;
@@ -180,11 +198,8 @@ TEST(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
                              compact = test::FromDevice(ctx, active.compact, n),
                              nb = test::FromDevice(ctx, active.neighbours, 6 * m);
 
-  const cpu::BrickTable ref = f.Reference(ctx);
-  const std::vector<float> tsdf = test::FromDevice(ctx, f.pool->tsdf, n),
-                           weight = test::FromDevice(ctx, f.pool->weight, n);
-  const std::vector<uint32_t> color = test::FromDevice(ctx, f.pool->color, n);
-  const cpu::McMesh cm = cpu::SparseMarchingCubes(ref, f.counts.used, tsdf.data(), weight.data(), color.data());
+  const cpu::BrickTable& ref = ref_;
+  const cpu::McMesh cm = CpuMesh();
   const cpu::ActiveSet ca = cpu::SparseActiveSet(ref, f.counts.used, cm.codes.data());
   EXPECT_EQ(list, ca.list);
   EXPECT_EQ(compact, ca.compact);
@@ -229,15 +244,11 @@ TEST(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
 // The field on the pool: extrapolation of the active points never optimised and the deformed mesh,
 // against the CPU exactly and against the dense grid's field holding the same values on the same
 // lattice.
-TEST(SparseMeshParityTest, FieldExtrapolationAndDeformedMeshMatchTheCpuAndTheDenseGrid) {
-  VD_REQUIRE_OCL(ctx);
-  DeviceOps ops(ctx);
-  ASSERT_TRUE(ops.Init().ok());
-  test::FusedBricks f;
-  test::FuseSphere(ctx, 2, &f, /*with_field=*/true);
-  if (HasFatalFailure()) return;
-  DeviceMesh mesh;
-  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &mesh).ok());
+TEST_F(SparseMeshParityTest, FieldExtrapolationAndDeformedMeshMatchTheCpuAndTheDenseGrid) {
+  ocl::Context* ctx = ctx_;
+  DeviceOps& ops = *ops_;
+  test::FusedBricks& f = f_;
+  DeviceMesh& mesh = mesh_;
   DeviceActiveSet active;
   ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
   const size_t m = active.count, n = size_t(f.counts.used) * VD_BRICK_VOXELS, nv = mesh.num_vertices;
@@ -327,27 +338,20 @@ TEST(SparseMeshParityTest, FieldExtrapolationAndDeformedMeshMatchTheCpuAndTheDen
 // Allocation for the one-ring: the missing bricks a surface point's 6-neighbour lies in are added
 // (the same keys on the device and the CPU), unobserved, so the mesh does not change and the active
 // set gains exactly the members it had to leave out: it is then the dense grid's.
-TEST(SparseMeshParityTest, RingAllocationCompletesTheActiveSet) {
-  VD_REQUIRE_OCL(ctx);
-  DeviceOps ops(ctx);
-  ASSERT_TRUE(ops.Init().ok());
-  test::FusedBricks f;
-  test::FuseSphere(ctx, 2, &f);
-  if (HasFatalFailure()) return;
-  DeviceMesh mesh;
-  ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &mesh).ok());
+TEST_F(SparseMeshParityTest, RingAllocationCompletesTheActiveSet) {
+  ocl::Context* ctx = ctx_;
+  DeviceOps& ops = *ops_;
+  test::FusedBricks& f = f_;
+  DeviceMesh& mesh = mesh_;
   const size_t nt = mesh.num_triangles;
   DeviceActiveSet active;
   ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
   const size_t m_before = active.count;
   const uint32_t used = f.counts.used;
-  cpu::BrickTable ref = f.Reference(ctx);
+  cpu::BrickTable ref = ref_;
   // The CPU: surface flags from its own marching cubes, then the ring.
   const size_t n = size_t(used) * VD_BRICK_VOXELS;
-  const std::vector<float> tsdf = test::FromDevice(ctx, f.pool->tsdf, n),
-                           weight = test::FromDevice(ctx, f.pool->weight, n);
-  const std::vector<uint32_t> color = test::FromDevice(ctx, f.pool->color, n);
-  const cpu::McMesh cm = cpu::SparseMarchingCubes(ref, used, tsdf.data(), weight.data(), color.data());
+  const cpu::McMesh cm = CpuMesh();
   const std::vector<int32_t> nbr = cpu::BrickNeighbours(ref, used);
   std::vector<uint8_t> surface(n, 0);
   for (size_t i = 0; i < n; ++i) {
@@ -396,7 +400,7 @@ TEST(SparseMeshParityTest, RingAllocationCompletesTheActiveSet) {
               size_t(active.count), m_before, only_dense, da.list.size());
 }
 
-TEST(SparseMeshParityTest, AnEmptyPoolGivesAnEmptyMesh) {
+TEST(SparseMeshTest, AnEmptyPoolGivesAnEmptyMesh) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());

@@ -51,6 +51,18 @@ VD_INLINE vd_float4 vd_extrapolate_prediction(vd_float4 t, vd_float4 r, int dx, 
   return t + vd_quat_rotate(r, edge);
 }
 
+/* The end of an extrapolation: the mean of the n predictions summed in disp, with the rotation of
+ * neighbour `first` (none when n == 0: returns 0 and leaves the outputs). */
+VD_INLINE int vd_extrapolate_finish(vd_float4 disp, float n, int first, VD_GLOBAL const vd_float4* def_rot,
+                                    vd_float4* pos_out, vd_float4* rot_out) {
+  if (n == 0.0f) return 0;
+  vd_float4 p = disp / n;
+  p.w = 0.0f;
+  *pos_out = p;
+  *rot_out = def_rot[first];
+  return 1;
+}
+
 /* A grid point entering the active set for the first time (never optimised: w == 0) starts where
  * its optimised 26-neighbours j put it as rigid pieces, the mean of t_j + R_j (t^_i - t^_j) (the
  * ARAP prior's own prediction), with the rotation of the first such neighbour. Moving it by their
@@ -79,12 +91,7 @@ VD_INLINE int vd_extrapolate_point(int gi, VD_GLOBAL const vd_float4* def_pos, V
     n += 1.0f;
     if (first < 0) first = j;
   }
-  if (n == 0.0f) return 0;
-  vd_float4 p = disp / n;
-  p.w = 0.0f;
-  *pos_out = p;
-  *rot_out = def_rot[first];
-  return 1;
+  return vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out);
 }
 
 /* Moves a rigid motion out of the field: grid point i (optimised: w > 0) takes t_i' = A t_i and

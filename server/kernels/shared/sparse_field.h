@@ -33,12 +33,7 @@ VD_INLINE int vd_sparse_extrapolate_point(int v, VD_GLOBAL const int* nbr, VD_GL
     n += 1.0f;
     if (first < 0) first = j;
   }
-  if (n == 0.0f) return 0;
-  vd_float4 p = disp / n;
-  p.w = 0.0f;
-  *pos_out = p;
-  *rot_out = def_rot[first];
-  return 1;
+  return vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out);
 }
 
 /* S(x) for a point in global grid coordinates g (as marching cubes over the bricks emits vertices):

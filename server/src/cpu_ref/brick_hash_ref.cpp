@@ -69,13 +69,21 @@ BrickTable BrickCompact(const BrickTable& old, const uint32_t* keep) {
   return t;
 }
 
-void BrickPoolMove(const uint32_t* keep, uint32_t used, float* tsdf, float* weight, uint32_t* color) {
+namespace {
+// The exclusive prefix sum of keep over the first `used` slots (independent of the device's scan).
+std::vector<uint32_t> KeptOffsets(const uint32_t* keep, uint32_t used) {
   std::vector<uint32_t> offsets(used);
   uint32_t kept = 0;
   for (uint32_t s = 0; s < used; ++s) {
     offsets[s] = kept;
     kept += keep[s] ? 1u : 0u;
   }
+  return offsets;
+}
+}  // namespace
+
+void BrickPoolMove(const uint32_t* keep, uint32_t used, float* tsdf, float* weight, uint32_t* color) {
+  const std::vector<uint32_t> offsets = KeptOffsets(keep, used);
   for (int v = 0; v < VD_BRICK_VOXELS; ++v)
     vd_brick_pool_move_lane(v, keep, offsets.data(), int(used), tsdf, weight, color);
 }
@@ -102,12 +110,7 @@ void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visibl
 }
 
 void BrickFieldMove(const uint32_t* keep, uint32_t used, vd_float4* def_pos, vd_float4* def_rot) {
-  std::vector<uint32_t> offsets(used);
-  uint32_t kept = 0;
-  for (uint32_t s = 0; s < used; ++s) {
-    offsets[s] = kept;
-    kept += keep[s] ? 1u : 0u;
-  }
+  const std::vector<uint32_t> offsets = KeptOffsets(keep, used);
   for (int v = 0; v < VD_BRICK_VOXELS; ++v)
     vd_brick_field_move_lane(v, keep, offsets.data(), int(used), def_pos, def_rot);
 }

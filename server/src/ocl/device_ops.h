@@ -142,6 +142,11 @@ class DeviceOps {
                    const VdIcpParams& params, double acc[VD_ICP_ACC]);
 
  private:
+  // Marching cubes' scratch for `points` grid or pool points in `rows` rows of work.
+  Status ReserveMarchingCubes(size_t points, size_t rows);
+  // After the classification and mask passes: the scans, the mesh's counts and buffers; whether it
+  // has anything to emit.
+  StatusOr<bool> SizeMesh(size_t rows, DeviceMesh* mesh);
   ocl::Context* ctx_;
   ocl::Buffer<int8_t> mc_tri_table_;
   ocl::Buffer<uint8_t> mc_tri_counts_;

@@ -5,17 +5,17 @@
 
 namespace vd {
 
-Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
-  const size_t n = v.num_voxels(), rows = v.num_rows();
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_codes_, n));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_masks_, n));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_vert_offset_, n));
+Status DeviceOps::ReserveMarchingCubes(size_t points, size_t rows) {
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_codes_, points));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_masks_, points));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_vert_offset_, points));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_tris_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_verts_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_tri_offset_, rows + 1));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_vert_offset_, rows + 1));
-  VD_RETURN_IF_ERROR(ocl::kMcClassify(*ctx_, rows, v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_row_tris_));
-  VD_RETURN_IF_ERROR(ocl::kMcMasks(*ctx_, rows, v.tsdf, mc_codes_, mc_row_tris_, v.vol, mc_masks_, mc_row_verts_));
+  return ctx_->Reserve(&mc_row_vert_offset_, rows + 1);
+}
+
+StatusOr<bool> DeviceOps::SizeMesh(size_t rows, DeviceMesh* mesh) {
   uint32_t nt = 0, nv = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(mc_row_tris_, rows, mc_row_tri_offset_, &nt));
   VD_RETURN_IF_ERROR(ScanExclusive(mc_row_verts_, rows, mc_row_vert_offset_, &nv));
@@ -26,7 +26,16 @@ Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->normals, nv));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->colors, nv));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->triangles, 3 * static_cast<size_t>(nt)));
-  if (nv == 0 || nt == 0) return Status::Ok();
+  return nv > 0 && nt > 0;
+}
+
+Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
+  const size_t n = v.num_voxels(), rows = v.num_rows();
+  VD_RETURN_IF_ERROR(ReserveMarchingCubes(n, rows));
+  VD_RETURN_IF_ERROR(ocl::kMcClassify(*ctx_, rows, v.tsdf, v.weight, v.vol, mc_tri_counts_, mc_codes_, mc_row_tris_));
+  VD_RETURN_IF_ERROR(ocl::kMcMasks(*ctx_, rows, v.tsdf, mc_codes_, mc_row_tris_, v.vol, mc_masks_, mc_row_verts_));
+  VD_ASSIGN_OR_RETURN(const bool any, SizeMesh(rows, mesh));
+  if (!any) return Status::Ok();
   VD_RETURN_IF_ERROR(ocl::kMcVertices(*ctx_, rows, v.tsdf, v.color, v.vol, mc_masks_, mc_row_verts_,
                                       mc_row_vert_offset_, mc_vert_offset_, mesh->positions_grid, mesh->normals,
                                       mesh->colors));
