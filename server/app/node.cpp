@@ -415,7 +415,9 @@ class Node::Impl {
     while (process_times_.size() > 30) process_times_.pop_front();
     state_ = result->tracking_ok ? vdeform::server_status_t::STATE_TRACKING : vdeform::server_status_t::STATE_TRACKING_LOST;
     message_ = result->tracking_ok ? engine_->DeviceDescription() : result->tracking_message;
-    if (result->bricks_pool > 0) message_ += "; " + BrickPoolNote(*result);
+    // The sparse volume's pool use first: viewers that show the start of the message (the window's
+    // overlay) then show whether the pool is full.
+    if (result->bricks_pool > 0) message_ = BrickPoolNote(*result) + "; " + message_;
     dense_ = result->dense_correspondences;
     sparse_ = result->sparse_matches;
     if (result->energies_evaluated) {
