@@ -594,6 +594,18 @@ TEST_F(SparseNodeTest, AFullBrickPoolIsInTheStatusAndTheNodeGoesOn) {
   EXPECT_TRUE(model->sparse);
   EXPECT_EQ(model->frames_fused, 3);
   EXPECT_GT(model->brick_keys.size(), 100u);
+  // RESET: a new model in the same table and pool, from the next frame.
+  c.command = vdeform::control_t::COMMAND_RESET;
+  c.path = "";
+  lcm_.publish(kControlChannel, &c);
+  Pump();
+  EXPECT_FALSE(node_->RunOnce());
+  EXPECT_EQ(Status().model_frames, 0);
+  SendAndProcess((*tube)->Render(5), 3);
+  st = Status();
+  EXPECT_EQ(int(st.state), int(vdeform::server_status_t::STATE_TRACKING)) << st.message;
+  EXPECT_EQ(st.model_frames, 1);
+  EXPECT_EQ(st.message.rfind("bricks ", 0), 0u) << st.message;
 }
 
 // A frame of another scene: reported in the status as TRACKING_LOST, not fused (the model's frame
