@@ -67,7 +67,8 @@ void EngineParams::Bind(FlagParser* f) {
   f->Add("min-depth", &min_depth, "Depth below this many metres is ignored");
   f->Add("max-depth", &max_depth, "Depth beyond this many metres is ignored");
   f->Add("max-grid-mb", &max_grid_mb,
-         "Memory the grid may use, MB (12 bytes per point with --rigid-only, 44 with the deformation field)");
+         "Memory the grid may use, MB (12 bytes per point with --rigid-only, 44 with the deformation field); with "
+         "--sparse-volume the most the bricks may use (6.3 KB a brick of 512 points with --rigid-only)");
   f->Add("volume-margin", &volume_margin,
          "Space added around the first frame's points when placing the grid, metres (larger for a moving "
          "camera that will see more of the scene)");
