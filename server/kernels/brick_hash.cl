@@ -211,3 +211,16 @@ __kernel void vd_sparse_deform_vertices(__global const float4* grid_pos, __globa
   if (i >= vd_items) return;
   out[i] = vd_sparse_deform_point(grid_pos[i], keys, slots, capacity, nbr, def_pos, voxel_size);
 }
+
+/* One work item per per-pixel constraint: the compact index of its cell's first corner on the
+ * bricks (-1: unusable), counted per cell (vd_constraint_count's twin). */
+__kernel void vd_sparse_constraint_count(__global const VdCorrespondence* corr, __global const uint* keys,
+                                         __global const int* slots, uint capacity, __global const int* nbr,
+                                         __global const int* compact, __global int* cell_of, __global uint* counts,
+                                         int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  int kc = vd_sparse_constraint_cell(corr[i], keys, slots, capacity, nbr, compact);
+  cell_of[i] = kc;
+  if (kc >= 0) atomic_inc(&counts[kc]);
+}

@@ -400,6 +400,82 @@ TEST_F(SparseMeshParityTest, RingAllocationCompletesTheActiveSet) {
               size_t(active.count), m_before, only_dense, da.list.size());
 }
 
+// The solver's constraint grouping on the bricks: each constraint's cell (its first corner's compact
+// index) against the CPU exactly, and the same cell as the dense grid's on the same lattice.
+TEST_F(SparseMeshParityTest, ConstraintCellsMatchTheCpuAndTheDenseGrid) {
+  ocl::Context* ctx = ctx_;
+  DeviceActiveSet active;
+  ASSERT_TRUE(ops_->BuildActiveSet(*f_.table, &active).ok());
+  const size_t m = active.count, n = size_t(f_.counts.used) * VD_BRICK_VOXELS;
+  const std::vector<int32_t> list = test::FromDevice(ctx, active.list, m),
+                             compact = test::FromDevice(ctx, active.compact, n);
+  // Constraints at the mesh's vertices (global grid coordinates), every seventh pruned (w = 0), and
+  // a few far from every brick.
+  const cpu::McMesh cm = CpuMesh();
+  std::vector<VdCorrespondence> corr;
+  for (size_t i = 0; i < cm.positions_grid.size(); ++i) {
+    VdCorrespondence c{};
+    c.canonical = cm.positions_grid[i];
+    c.canonical.w = i % 7 == 0 ? 0.f : 1.f;
+    c.normal = VD_F4(0.f, 0.f, 1.f, 0.f);
+    corr.push_back(c);
+  }
+  for (int k = 0; k < 5; ++k) {
+    VdCorrespondence c{};
+    c.canonical = VD_F4(3000.f + k, -2000.f, 500.f, 1.f);
+    corr.push_back(c);
+  }
+  ocl::Buffer<VdCorrespondence> dcorr = test::ToDevice(ctx, corr);
+  auto cell_of = ctx->Alloc<int32_t>(corr.size());
+  auto counts = ctx->Alloc<uint32_t>(m + 1);
+  ASSERT_TRUE(cell_of.ok() && counts.ok());
+  ASSERT_TRUE(ctx->Fill(*counts, 0u, m + 1).ok());
+  ASSERT_TRUE(ocl::CountConstraints(*ctx, corr.size(), dcorr, *f_.table, active.compact, *cell_of, *counts).ok());
+  const std::vector<int32_t> cells = test::FromDevice(ctx, *cell_of, corr.size());
+  const std::vector<uint32_t> per_cell = test::FromDevice(ctx, *counts, m);
+
+  const std::vector<int32_t> nbr = cpu::BrickNeighbours(ref_, f_.counts.used);
+  std::vector<int32_t> ref_cells(corr.size());
+  std::vector<uint32_t> ref_counts(m, 0u);
+  for (size_t i = 0; i < corr.size(); ++i) {
+    ref_cells[i] = vd_sparse_constraint_cell(corr[i], ref_.keys.data(), ref_.slots.data(), ref_.capacity, nbr.data(),
+                                             compact.data());
+    if (ref_cells[i] >= 0) ++ref_counts[ref_cells[i]];
+  }
+  EXPECT_EQ(cells, ref_cells);
+  EXPECT_EQ(per_cell, ref_counts);
+  size_t usable = 0;
+  for (int32_t c : cells) usable += c >= 0;
+  EXPECT_GT(usable, corr.size() * 3 / 4);
+  for (size_t i = corr.size() - 5; i < corr.size(); ++i) EXPECT_EQ(cells[i], -1);
+
+  // The dense grid: the same cell, named by its first corner's global grid coordinates.
+  std::vector<float> dt, dw;
+  std::vector<uint32_t> dc;
+  int lo[3];
+  const VdVolume dense = f_.DenseOver(ref_, 2, &dt, &dw, &dc, lo);
+  const cpu::McMesh dm = cpu::MarchingCubes(dt.data(), dw.data(), dc.data(), dense);
+  const cpu::ActiveSet da = cpu::BuildActiveSet(dm.codes.data(), dense);
+  size_t same = 0, compared = 0;
+  for (size_t i = 0; i + 5 < corr.size(); ++i) {
+    VdCorrespondence d = corr[i];
+    d.canonical = VD_F4(d.canonical.x - lo[0], d.canonical.y - lo[1], d.canonical.z - lo[2], d.canonical.w);
+    const int kd = vd_constraint_cell(d, da.compact.data(), dense);
+    if (kd < 0 && cells[i] < 0) continue;
+    ++compared;
+    if (kd < 0 || cells[i] < 0) continue;
+    int x, y, z, g[3];
+    vd_grid_coords(da.list[kd], dense, &x, &y, &z);
+    vd_brick_voxel(ref_.slot_keys[list[cells[i]] / VD_BRICK_VOXELS], list[cells[i]] % VD_BRICK_VOXELS, &g[0], &g[1],
+                   &g[2]);
+    same += g[0] == lo[0] + x && g[1] == lo[1] + y && g[2] == lo[2] + z;
+  }
+  std::printf("constraint cells: %zu of %zu usable, the dense grid's cell for %zu of %zu\n", usable, corr.size(), same,
+              compared);
+  // The dense set's extra one-ring points (ActiveSetMatches...) can make a few more cells usable there.
+  EXPECT_GE(same, compared - compared / 200);
+}
+
 TEST(SparseMeshTest, AnEmptyPoolGivesAnEmptyMesh) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);

@@ -5,6 +5,7 @@
 #ifndef VD_SPARSE_FIELD_H
 #define VD_SPARSE_FIELD_H
 
+#include "correspondence.h"
 #include "deformation.h"
 #include "sparse_mesh.h"
 
@@ -36,6 +37,18 @@ VD_INLINE int vd_sparse_extrapolate_point(int v, VD_GLOBAL const int* nbr, VD_GL
   return vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out);
 }
 
+/* The pool slot and local coordinates of the brick holding global grid point (cx, cy, cz) (through
+ * the hash), -1 when it is not allocated. */
+VD_INLINE int vd_brick_locate(int cx, int cy, int cz, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
+                              vd_uint capacity, int* lx, int* ly, int* lz) {
+  int bx = (int)floor((float)cx / (float)VD_BRICK), by = (int)floor((float)cy / (float)VD_BRICK),
+      bz = (int)floor((float)cz / (float)VD_BRICK);
+  *lx = cx - VD_BRICK * bx;
+  *ly = cy - VD_BRICK * by;
+  *lz = cz - VD_BRICK * bz;
+  return vd_brick_coords_valid(bx, by, bz) ? vd_brick_find(keys, slots, capacity, vd_brick_pack(bx, by, bz)) : -1;
+}
+
 /* S(x) for a point in global grid coordinates g (as marching cubes over the bricks emits vertices):
  * the trilinear blend of its cell's 8 corners' t_i; a corner whose brick is not allocated holds its
  * rest position (it was never deformed). w = 1. */
@@ -44,10 +57,8 @@ VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint*
                                            VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
   int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
   float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
-  int bx = (int)floor((float)cx / (float)VD_BRICK), by = (int)floor((float)cy / (float)VD_BRICK),
-      bz = (int)floor((float)cz / (float)VD_BRICK);
-  int slot = vd_brick_coords_valid(bx, by, bz) ? vd_brick_find(keys, slots, capacity, vd_brick_pack(bx, by, bz)) : -1;
-  int lx = cx - VD_BRICK * bx, ly = cy - VD_BRICK * by, lz = cz - VD_BRICK * bz;
+  int lx, ly, lz;
+  int slot = vd_brick_locate(cx, cy, cz, keys, slots, capacity, &lx, &ly, &lz);
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int k = 0; k < 8; ++k) {
     int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
@@ -60,6 +71,38 @@ VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint*
   }
   acc.w = 1.0f;
   return acc;
+}
+
+/* vd_cell_corners on the bricks: the compact indices (compact: pool voxel -> active index) of the 8
+ * corners of the cell holding global grid position g, and their trilinear weights; 0 when a corner
+ * is not in M (or its brick is not allocated). */
+VD_INLINE int vd_sparse_cell_corners(vd_float4 g, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
+                                     vd_uint capacity, VD_GLOBAL const int* nbr, VD_GLOBAL const int* compact, int* idx,
+                                     float* alpha) {
+  int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
+  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
+  int lx, ly, lz;
+  int slot = vd_brick_locate(cx, cy, cz, keys, slots, capacity, &lx, &ly, &lz);
+  if (slot < 0) return 0;
+  for (int o = 0; o < 8; ++o) {
+    int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
+    int v = vd_brick_voxel_at(nbr, slot, lx + ox, ly + oy, lz + oz);
+    idx[o] = v >= 0 ? compact[v] : -1;
+    if (idx[o] < 0) return 0;
+    alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+  }
+  return 1;
+}
+
+/* vd_constraint_cell on the bricks: the compact index of the first corner of c's cell, -1 when the
+ * constraint is unusable. */
+VD_INLINE int vd_sparse_constraint_cell(VdCorrespondence c, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
+                                        vd_uint capacity, VD_GLOBAL const int* nbr, VD_GLOBAL const int* compact) {
+  if (!(c.canonical.w > 0.0f)) return -1;
+  int idx[8];
+  float alpha[8];
+  if (!vd_sparse_cell_corners(c.canonical, keys, slots, capacity, nbr, compact, idx, alpha)) return -1;
+  return idx[0];
 }
 
 #endif /* VD_SPARSE_FIELD_H */

@@ -265,4 +265,12 @@ Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, V
                           pool.weight, pool.color, vol, cam, world_to_cam, depth, rgba);
 }
 
+Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const BrickTable& table,
+                        const Buffer<int32_t>& compact, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts) {
+  if (corr.size() < n || cell_of.size() < n) return InvalidArgument("constraint buffers smaller than n");
+  if (n == 0) return Status::Ok();
+  return kSparseConstraintCount(ctx, n, corr, table.keys(), table.slots(), table.capacity(), table.neighbours(),
+                                compact, cell_of, counts);
+}
+
 }  // namespace vd::ocl

@@ -79,6 +79,11 @@ inline constexpr Kernel<void(const Buffer<vd_float4>& grid_pos, const Buffer<uin
                              const Buffer<int32_t>& slots, uint32_t capacity, const Buffer<int32_t>& nbr,
                              const Buffer<vd_float4>& def_pos, float voxel_size, Buffer<vd_float4>& out)>
     kSparseDeformVertices{"vd_sparse_deform_vertices"};
+// One item per per-pixel constraint.
+inline constexpr Kernel<void(const Buffer<VdCorrespondence>& corr, const Buffer<uint32_t>& keys,
+                             const Buffer<int32_t>& slots, uint32_t capacity, const Buffer<int32_t>& nbr,
+                             const Buffer<int32_t>& compact, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts)>
+    kSparseConstraintCount{"vd_sparse_constraint_count"};
 // Laned, one item per voxel of the listed bricks.
 inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf,
                              Buffer<float>& weight, Buffer<uint32_t>& color, VdVolume vol, VdCamera cam,
@@ -213,5 +218,12 @@ struct BrickPool {
 // from the world origin).
 Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, VdVolume vol, VdCamera cam,
                        VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba);
+
+// The solver's constraint grouping on a sparse volume (CountConstraints' twin): cell_of[i] the
+// compact index of constraint i's cell's first corner (-1: unusable), counts[cell] += 1. compact:
+// the active set over the pool (DeviceOps::BuildActiveSet(table, ...), which builds the table's
+// neighbours).
+Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const BrickTable& table,
+                        const Buffer<int32_t>& compact, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts);
 
 }  // namespace vd::ocl
