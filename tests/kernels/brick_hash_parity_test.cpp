@@ -55,6 +55,16 @@ std::vector<uint32_t> Keys(int n, uint32_t seed, std::vector<uint32_t>* distinct
   return out;
 }
 
+// A camera turned and moved, so bricks are not aligned with the image.
+VdPose TurnedPose() {
+  const float c = std::cos(0.3f), s = std::sin(0.3f);
+  VdPose pose{};
+  pose.r0 = VD_F4(c, 0.f, s, 0.05f);
+  pose.r1 = VD_F4(0.f, 1.f, 0.f, -0.1f);
+  pose.r2 = VD_F4(-s, 0.f, c, 0.2f);
+  return pose;
+}
+
 TEST(BrickHashTest, KeysPackAndUnpackOverTheWholeRange) {
   for (int b : {VD_BRICK_COORD_MIN, -1, 0, 1, VD_BRICK_COORD_MAX}) {
     const uint32_t k = vd_brick_pack(b, -b - 1, b / 2);
@@ -199,12 +209,7 @@ TEST(BrickHashParityTest, AllocationFromDepthCoversTheTruncationBand) {
   VD_REQUIRE_OCL(ctx);
   const VdCamera cam = test::TestCamera(160, 120);
   const std::vector<float> depth = test::SphereDepth(cam, 0.8f, 0.2f, 1.2f);
-  // A camera turned and moved, so bricks are not aligned with the image.
-  const float c = std::cos(0.3f), s = std::sin(0.3f);
-  VdPose pose{};
-  pose.r0 = VD_F4(c, 0.f, s, 0.05f);
-  pose.r1 = VD_F4(0.f, 1.f, 0.f, -0.1f);
-  pose.r2 = VD_F4(-s, 0.f, c, 0.2f);
+  const VdPose pose = TurnedPose();
   const float trunc = 0.016f, brick = 0.032f;
   auto table = ocl::BrickTable::Create(*ctx, 1 << 14);
   ASSERT_TRUE(table.ok());
@@ -244,11 +249,7 @@ TEST(BrickHashParityTest, AllocationAndListingInOnePassMatchTheTwoPasses) {
   VD_REQUIRE_OCL(ctx);
   const VdCamera cam = test::TestCamera(160, 120);
   const std::vector<float> depth = test::SphereDepth(cam, 0.8f, 0.2f, 1.2f);
-  const float c = std::cos(0.3f), s = std::sin(0.3f);
-  VdPose pose{};
-  pose.r0 = VD_F4(c, 0.f, s, 0.05f);
-  pose.r1 = VD_F4(0.f, 1.f, 0.f, -0.1f);
-  pose.r2 = VD_F4(-s, 0.f, c, 0.2f);
+  const VdPose pose = TurnedPose();
   const float trunc = 0.016f, brick = 0.032f;
   ocl::Buffer<float> dd = test::ToDevice(ctx, depth);
   auto two = ocl::BrickTable::Create(*ctx, 1 << 14);
