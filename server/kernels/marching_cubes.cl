@@ -1,19 +1,30 @@
 #include "shared/marching_cubes.h"
+#include "shared/tsdf.h"
 
 /* All marching-cubes kernels run one work item per grid row (fixed y, z) looping over x. Offsets
  * within a row are running sums in that loop, so only the per-row totals need a device scan. */
 
-__kernel void vd_mc_classify(__global const float* tsdf, __global const float* weight, VdVolume vol,
-                             __global const uchar* tri_counts, __global ushort* codes, __global uint* row_tris,
-                             int vd_items) {
+/* A cell is valid only when its first corner holds weight, so the cells whose first corners lie
+ * in an untouched brick (shared/tsdf.h) get code 0 without reading the grid. */
+__kernel void vd_mc_classify(__global const float* tsdf, __global const float* weight, __global const uchar* touched,
+                             VdVolume vol, __global const uchar* tri_counts, __global ushort* codes,
+                             __global uint* row_tris, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  int brick_row = vd_grid_brick(vol, 0, y, z);
   uint total = 0u;
-  for (int x = 0; x < vol.dim_x; ++x) {
-    uint code = vd_mc_cell_code(tsdf, weight, vol, x, y, z);
-    codes[yz * vol.dim_x + x] = (ushort)code;
-    total += (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
+  for (int x0 = 0; x0 < vol.dim_x; x0 += VD_BRICK) {
+    int x1 = vd_min_i(x0 + VD_BRICK, vol.dim_x);
+    if (!touched[brick_row + x0 / VD_BRICK]) {
+      for (int x = x0; x < x1; ++x) codes[yz * vol.dim_x + x] = (ushort)0;
+      continue;
+    }
+    for (int x = x0; x < x1; ++x) {
+      uint code = vd_mc_cell_code(tsdf, weight, vol, x, y, z);
+      codes[yz * vol.dim_x + x] = (ushort)code;
+      total += (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
+    }
   }
   row_tris[yz] = total;
 }

@@ -34,6 +34,7 @@ TEST(ActiveSetParityTest, SurfaceCellsPlusOneRingMatchCpu) {
   ASSERT_TRUE(ops.AllocVolume(vol, false, &dv).ok());
   ASSERT_TRUE(ctx->Upload(dv.tsdf, tsdf.data(), n).ok());
   ASSERT_TRUE(ctx->Upload(dv.weight, weight.data(), n).ok());
+  ASSERT_TRUE(ops.MarkTouched(dv).ok());
   DeviceMesh dm;
   ASSERT_TRUE(ops.MarchingCubes(dv, &dm).ok());
   DeviceActiveSet das;

@@ -36,6 +36,7 @@ cpu::McMesh RunOcl(ocl::Context* ctx, const Grid& g) {
   EXPECT_TRUE(ops.AllocVolume(g.vol, false, &dv).ok());
   EXPECT_TRUE(ctx->Upload(dv.tsdf, g.tsdf.data(), g.tsdf.size()).ok());
   EXPECT_TRUE(ctx->Upload(dv.weight, g.weight.data(), g.weight.size()).ok());
+  EXPECT_TRUE(ops.MarkTouched(dv).ok());
   EXPECT_TRUE(ctx->Upload(dv.color, g.color.data(), g.color.size()).ok());
   DeviceMesh m;
   Status s = ops.MarchingCubes(dv, &m);

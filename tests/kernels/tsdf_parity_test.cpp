@@ -59,6 +59,55 @@ TEST(TsdfParityTest, IntegrationMatchesCpuAndFindsTheSphere) {
   EXPECT_EQ(weight[at(0.f, 0.f, 0.95f)], 0.f);
 }
 
+// Touched bricks (shared/tsdf.h): brick fusion flags exactly the bricks it marks, every brick with
+// a weighted point is among them, MarkTouched rebuilds the CPU's flags, and marching cubes, which
+// skips the untouched bricks, gives the CPU's mesh of the whole grid; with no brick touched it
+// finds nothing, so the skip is real.
+TEST(TsdfParityTest, TouchedBricksCoverEveryFusedPointAndMarchingCubesSkipsTheRest) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  const SphereView view;
+  const auto& [cam, depth, colors, vol, n] = view;
+  VdPose T = test::IdentityPose();
+  T.r0.w = 0.01f;
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, false, &dv).ok());
+  ASSERT_EQ(dv.num_bricks(), 512u);
+  EXPECT_EQ(test::FromDevice(ctx, dv.touched, dv.num_bricks()), std::vector<uint8_t>(512, 0));
+  auto ddepth = test::ToDevice(ctx, depth);
+  auto dcol = test::ToDevice(ctx, colors);
+  for (int k = 0; k < 2; ++k) ASSERT_TRUE(ops.IntegrateTsdf(dv, cam, T, ddepth, dcol).ok());
+  const std::vector<uint8_t> fused = test::FromDevice(ctx, dv.touched, 512);
+  const std::vector<uint32_t> flags = test::FromDevice(ctx, ops.brick_flags(), 512);
+  const std::vector<float> tsdf = test::FromDevice(ctx, dv.tsdf, n), weight = test::FromDevice(ctx, dv.weight, n);
+  const std::vector<uint32_t> color = test::FromDevice(ctx, dv.color, n);
+  const std::vector<uint8_t> exact = cpu::VolumeTouched(weight.data(), vol);
+  size_t touched = 0, weighted = 0;
+  for (size_t b = 0; b < 512; ++b) {
+    EXPECT_EQ(fused[b], flags[b] ? 1 : 0) << b;
+    if (exact[b]) EXPECT_EQ(fused[b], 1) << "brick " << b << " holds weight but is not touched";
+    touched += fused[b];
+    weighted += exact[b];
+  }
+  EXPECT_GT(weighted, 20u);
+  EXPECT_LT(touched, 256u);
+  ASSERT_TRUE(ops.MarkTouched(dv).ok());
+  EXPECT_EQ(test::FromDevice(ctx, dv.touched, 512), exact);
+
+  const cpu::McMesh ref = cpu::MarchingCubes(tsdf.data(), weight.data(), color.data(), vol);
+  ASSERT_GT(ref.triangles.size(), 300u);
+  DeviceMesh mesh;
+  ASSERT_TRUE(ops.MarchingCubes(dv, &mesh).ok());
+  ASSERT_EQ(mesh.num_triangles * 3, ref.triangles.size());
+  EXPECT_EQ(test::FromDevice(ctx, mesh.triangles, ref.triangles.size()), ref.triangles);
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, mesh.positions_grid, mesh.num_vertices)),
+                             test::Flatten(ref.positions_grid), 1e-6f, 1e-6f));
+  ASSERT_TRUE(ctx->Fill(dv.touched, uint8_t{0}, 512).ok());
+  ASSERT_TRUE(ops.MarchingCubes(dv, &mesh).ok());
+  EXPECT_EQ(mesh.num_triangles, 0u);
+}
+
 // One vd_tsdf_integrate_active on the device from the given grid state; the state after it.
 struct FusedState {
   std::vector<float> tsdf, weight;
@@ -72,6 +121,7 @@ FusedState FuseActiveOnDevice(ocl::Context* ctx, DeviceOps& ops, const SphereVie
   EXPECT_TRUE(ops.AllocVolume(view.vol, true, &dv).ok());
   EXPECT_TRUE(ctx->Upload(dv.tsdf, before.tsdf.data(), n).ok());
   EXPECT_TRUE(ctx->Upload(dv.weight, before.weight.data(), n).ok());
+  EXPECT_TRUE(ops.MarkTouched(dv).ok());
   EXPECT_TRUE(ctx->Upload(dv.color, before.color.data(), n).ok());
   EXPECT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
   DeviceActiveSet active;
@@ -80,6 +130,12 @@ FusedState FuseActiveOnDevice(ocl::Context* ctx, DeviceOps& ops, const SphereVie
   EXPECT_TRUE(ops.IntegrateActive(dv, active, fp, view.cam, T, test::ToDevice(ctx, view.depth),
                                   test::ToDevice(ctx, view.colors))
                   .ok());
+  // Every brick holding weight after the fusion is touched (new points fused included).
+  const std::vector<uint8_t> touched = test::FromDevice(ctx, dv.touched, dv.num_bricks());
+  const std::vector<float> weight = test::FromDevice(ctx, dv.weight, n);
+  const std::vector<uint8_t> exact = cpu::VolumeTouched(weight.data(), view.vol);
+  for (size_t b = 0; b < exact.size(); ++b)
+    if (exact[b]) EXPECT_EQ(touched[b], 1) << "brick " << b << " holds weight but is not touched";
   return {test::FromDevice(ctx, dv.tsdf, n), test::FromDevice(ctx, dv.weight, n), test::FromDevice(ctx, dv.color, n)};
 }
 
@@ -111,6 +167,11 @@ TEST(TsdfParityTest, ActiveIntegrationMatchesCpuAndGatesNewSpaceLonger) {
     if (iz % 2) weight[i] = 1.f;
     if (iz >= 12) pos[i].z -= 0.03f;
   }
+  // New space in a brick nothing else has weight in (x 40..47, y 32..39, z 8..15), 3.7 cm in front
+  // of the sphere: fusing it must flag its brick touched (FuseActiveOnDevice checks).
+  const int fresh = 40 + vol.dim_x * (32 + vol.dim_y * 10);
+  list.push_back(fresh);
+  pos[fresh].w = 12.f;
   VdFusionParams fp{};
   fp.k_min = 3.f;
   fp.k_min_new = 12.f;  // no carving: the points in front of the surface are fused as free space
@@ -127,6 +188,7 @@ TEST(TsdfParityTest, ActiveIntegrationMatchesCpuAndGatesNewSpaceLonger) {
     fused += want;
   }
   EXPECT_EQ(fused, 8);  // iz 5, 7 (old, 5 optimisations) and 9..14
+  EXPECT_EQ(weight_ref[fresh], 1.f);
   // Where the field moved it, a point samples the depth 3 cm nearer: iz 13 (0.81 m, old) is fused as
   // a point at 0.78 m, the distance iz 10 (0.78 m, new) got, averaged with its weight-1 value 1.
   EXPECT_NEAR(tsdf_ref[at(13)], 0.5f * (1.f + tsdf_ref[at(10)]), 1e-5f);

@@ -125,6 +125,34 @@ VD_INLINE int vd_bricks_x(VdVolume vol) { return (vol.dim_x + VD_BRICK - 1) / VD
 VD_INLINE int vd_bricks_y(VdVolume vol) { return (vol.dim_y + VD_BRICK - 1) / VD_BRICK; }
 VD_INLINE int vd_bricks_z(VdVolume vol) { return (vol.dim_z + VD_BRICK - 1) / VD_BRICK; }
 
+/* Touched bricks: touched[b] == 0 promises that no grid point of brick b holds weight, so the
+ * passes that look for observed cells (marching cubes' classification) skip the brick without
+ * reading it. Fusion keeps the promise by flagging every brick it gives weight to (a flag may stay
+ * set after carving empties a brick: that costs time, not correctness); vd_brick_touched_from
+ * rebuilds a flag from the weights after the host wrote them. */
+VD_INLINE int vd_grid_brick(VdVolume vol, int x, int y, int z) {
+  return x / VD_BRICK + vd_bricks_x(vol) * (y / VD_BRICK + vd_bricks_y(vol) * (z / VD_BRICK));
+}
+
+VD_INLINE int vd_grid_brick_of_index(VdVolume vol, int gi) {
+  int x = gi % vol.dim_x, yz = gi / vol.dim_x;
+  return vd_grid_brick(vol, x, yz % vol.dim_y, yz / vol.dim_y);
+}
+
+VD_INLINE vd_uchar vd_brick_touched_from(VD_GLOBAL const float* weight, VdVolume vol, int b) {
+  int nbx = vd_bricks_x(vol), nby = vd_bricks_y(vol);
+  int x0 = (b % nbx) * VD_BRICK, y0 = ((b / nbx) % nby) * VD_BRICK, z0 = (b / (nbx * nby)) * VD_BRICK;
+  int x1 = vd_min_i(x0 + VD_BRICK, vol.dim_x), y1 = vd_min_i(y0 + VD_BRICK, vol.dim_y);
+  int z1 = vd_min_i(z0 + VD_BRICK, vol.dim_z);
+  for (int z = z0; z < z1; ++z)
+    for (int y = y0; y < y1; ++y) {
+      int row = vol.dim_x * (y + vol.dim_y * z);
+      for (int x = x0; x < x1; ++x)
+        if (weight[row + x] > 0.0f) return (vd_uchar)1;
+    }
+  return (vd_uchar)0;
+}
+
 /* Depth tiles: the minimum and maximum valid depth of each VD_DEPTH_TILE^2 pixel tile (x = min,
  * y = max; min > max when the tile has no valid depth), the coarse image the brick test reads. */
 #define VD_DEPTH_TILE 4

@@ -302,6 +302,7 @@ Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
     VD_RETURN_IF_ERROR(ctx_->Upload(volume_.tsdf, s.tsdf.data(), n));
     VD_RETURN_IF_ERROR(ctx_->Upload(volume_.weight, s.weight.data(), n));
     VD_RETURN_IF_ERROR(ctx_->Upload(volume_.color, s.color.data(), n));
+    VD_RETURN_IF_ERROR(ops_.MarkTouched(volume_));
     if (s.has_deformation) {
       VD_RETURN_IF_ERROR(ctx_->Upload(volume_.def_pos, s.def_pos.data(), n));
       VD_RETURN_IF_ERROR(ctx_->Upload(volume_.def_rot, s.def_rot.data(), n));

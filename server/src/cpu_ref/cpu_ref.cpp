@@ -58,6 +58,12 @@ void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* lis
     vd_tsdf_integrate_deformed(tsdf, weight, color, list[k], def_pos[list[k]], fp, vol, cam, world_to_cam, depth, rgba);
 }
 
+std::vector<uint8_t> VolumeTouched(const float* weight, VdVolume vol) {
+  std::vector<uint8_t> touched(size_t(vd_bricks_x(vol)) * vd_bricks_y(vol) * vd_bricks_z(vol));
+  for (size_t b = 0; b < touched.size(); ++b) touched[b] = vd_brick_touched_from(weight, vol, int(b));
+  return touched;
+}
+
 void TransformField(vd_float4* def_pos, vd_float4* def_rot, int n, VdPose a, vd_float4 q_a) {
 #pragma omp parallel for schedule(static)
   for (int i = 0; i < n; ++i) vd_field_rigid_point(i, def_pos, def_rot, a, q_a);

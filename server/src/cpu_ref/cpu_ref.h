@@ -34,6 +34,9 @@ void IntegrateActive(float* tsdf, float* weight, uint32_t* color, const int* lis
                      VdFusionParams fp, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
                      const uint32_t* rgba);
 
+// vd_volume_touched: per 8^3 brick (shared/tsdf.h vd_grid_brick), 1 when a point of it holds weight.
+std::vector<uint8_t> VolumeTouched(const float* weight, VdVolume vol);
+
 void DeformationReset(vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
 // vd_field_rigid over n grid points.
 void TransformField(vd_float4* def_pos, vd_float4* def_rot, int n, VdPose a, vd_float4 q_a);

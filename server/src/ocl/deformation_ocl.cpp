@@ -12,6 +12,9 @@ Status DeviceOps::ResetVolume(DeviceVolume& v) {
   VD_RETURN_IF_ERROR(ctx_->Fill(v.tsdf, 1.0f, n));
   VD_RETURN_IF_ERROR(ctx_->Fill(v.weight, 0.0f, n));
   VD_RETURN_IF_ERROR(ctx_->Fill(v.color, 0u, n));
+  // Reserved here, not in AllocVolume: the engine reuses a grid of the same size with other dims.
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&v.touched, v.num_bricks()));
+  VD_RETURN_IF_ERROR(ctx_->Fill(v.touched, uint8_t{0}, v.num_bricks()));
   if (!v.has_deformation()) return Status::Ok();
   return ocl::kDeformationReset(*ctx_, v.num_rows(), v.def_pos, v.def_rot, v.vol);
 }

@@ -27,8 +27,13 @@ struct DeviceVolume {
   ocl::Buffer<uint32_t> color;
   ocl::Buffer<vd_float4> def_pos;
   ocl::Buffer<vd_float4> def_rot;
+  // Per 8^3 brick (shared/tsdf.h, vd_grid_brick), 0 only when none of its points holds weight: fusion
+  // flags what it fuses, and marching cubes skips the rest of the box. Whoever writes weights from
+  // the host calls DeviceOps::MarkTouched afterwards.
+  ocl::Buffer<uint8_t> touched;
   bool has_deformation() const { return !def_pos.empty(); }
   size_t num_voxels() const { return static_cast<size_t>(vol.dim_x) * vol.dim_y * vol.dim_z; }
+  size_t num_bricks() const { return static_cast<size_t>(vd_bricks_x(vol)) * vd_bricks_y(vol) * vd_bricks_z(vol); }
   // Grid rows (fixed y, z): the work items of the per-row kernels.
   size_t num_rows() const { return static_cast<size_t>(vol.dim_y) * vol.dim_z; }
 };
@@ -84,6 +89,8 @@ class DeviceOps {
 
   Status AllocVolume(const VdVolume& vol, bool with_deformation, DeviceVolume* out);
   Status ResetVolume(DeviceVolume& v);
+  // Rebuilds v.touched from the weights: after the host wrote them (a restore, a test's grid).
+  Status MarkTouched(DeviceVolume& v);
   // Projective TSDF fusion over the 8^3 bricks the depth's truncation band may touch (shared/tsdf.h):
   // the same update as IntegrateTsdfDense inside the band, free space beyond it left alone.
   Status IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,

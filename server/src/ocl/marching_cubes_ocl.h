@@ -10,9 +10,10 @@
 namespace vd::ocl {
 
 // One item per grid row (y, z), as for every marching-cubes pass.
-inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<float>& weight, VdVolume vol,
-                             const Buffer<uint8_t>& tri_counts, Buffer<uint16_t>& codes,
-                             Buffer<uint32_t>& row_tris)> kMcClassify{"vd_mc_classify"};
+inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<float>& weight, const Buffer<uint8_t>& touched,
+                             VdVolume vol, const Buffer<uint8_t>& tri_counts, Buffer<uint16_t>& codes,
+                             Buffer<uint32_t>& row_tris)>
+    kMcClassify{"vd_mc_classify"};
 // One item per grid row.
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint16_t>& codes, const Buffer<uint32_t>& row_tris,
                              VdVolume vol, Buffer<uint8_t>& masks,

@@ -16,7 +16,7 @@ Status DeviceOps::IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_c
   VD_RETURN_IF_ERROR(ctx_->Reserve(&depth_tiles_, tiles));
   VD_RETURN_IF_ERROR(ocl::kDepthTiles(*ctx_, tiles, depth, cam, depth_tiles_));
   VD_RETURN_IF_ERROR(
-      ocl::kBrickMark(*ctx_, bricks, depth_tiles_, cam, world_to_cam, v.vol, brick_flags_, brick_masks_));
+      ocl::kBrickMark(*ctx_, bricks, depth_tiles_, cam, world_to_cam, v.vol, brick_flags_, brick_masks_, v.touched));
   uint32_t total = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(brick_flags_, bricks, brick_offsets_, &total));
   VD_RETURN_IF_ERROR(ocl::kBrickCompact(*ctx_, bricks, brick_flags_, brick_offsets_, brick_list_));
@@ -27,15 +27,22 @@ Status DeviceOps::IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_c
 
 Status DeviceOps::IntegrateTsdfDense(DeviceVolume& v, VdCamera cam, VdPose world_to_cam,
                                      const ocl::Buffer<float>& depth, const ocl::Buffer<uint32_t>& rgba) {
-  return ocl::kTsdfIntegrate(*ctx_, v.num_rows(), v.tsdf, v.weight, v.color, v.vol, cam, world_to_cam, depth, rgba);
+  VD_RETURN_IF_ERROR(
+      ocl::kTsdfIntegrate(*ctx_, v.num_rows(), v.tsdf, v.weight, v.color, v.vol, cam, world_to_cam, depth, rgba));
+  return MarkTouched(v);
+}
+
+Status DeviceOps::MarkTouched(DeviceVolume& v) {
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&v.touched, v.num_bricks()));
+  return ocl::kVolumeTouched(*ctx_, v.num_bricks(), v.weight, v.vol, v.touched);
 }
 
 Status DeviceOps::IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, const VdFusionParams& fp,
                                   VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
                                   const ocl::Buffer<uint32_t>& rgba) {
   if (!v.has_deformation()) return FailedPrecondition("IntegrateActive needs a deformation field");
-  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, active.list, v.def_pos, fp, v.vol,
-                                   cam, world_to_cam, depth, rgba);
+  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, v.touched, active.list, v.def_pos,
+                                   fp, v.vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd
