@@ -4,8 +4,8 @@
  * (row_tris from marching cubes) are written as zeros without looking at the cells: most of the
  * grid is empty space. row_surface receives each row's surface point count. */
 __kernel void vd_active_surface(__global const ushort* codes, __global const uchar* tri_counts,
-                                __global const uint* row_tris, VdVolume vol, __global uchar* surface,
-                                __global uint* row_surface, int vd_items) {
+                                __global const uint* row_tris, __global const uchar* chunk_tris, VdVolume vol,
+                                __global uchar* surface, __global uint* row_surface, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
@@ -15,10 +15,17 @@ __kernel void vd_active_surface(__global const ushort* codes, __global const uch
     return;
   }
   uint n = 0u;
-  for (int x = 0; x < vol.dim_x; ++x) {
-    vd_uchar s = vd_active_surface_point(codes, tri_counts, vol, x, y, z);
-    surface[yz * vol.dim_x + x] = s;
-    n += s;
+  for (int x0 = 0; x0 < vol.dim_x; x0 += VD_MC_CHUNK) {
+    int x1 = vd_min_i(x0 + VD_MC_CHUNK, vol.dim_x);
+    if (!vd_mc_chunk_near_cells(chunk_tris, vol, x0, x1, y, z)) {
+      for (int x = x0; x < x1; ++x) surface[yz * vol.dim_x + x] = 0;
+      continue;
+    }
+    for (int x = x0; x < x1; ++x) {
+      vd_uchar s = vd_active_surface_point(codes, tri_counts, vol, x, y, z);
+      surface[yz * vol.dim_x + x] = s;
+      n += s;
+    }
   }
   row_surface[yz] = n;
 }
@@ -58,6 +65,30 @@ __kernel void vd_active_compact(__global const uchar* member, __global const uin
       compact[i] = -1;
     }
   }
+}
+
+/* The same when compact already holds -1 at every non-member (the old members cleared by
+ * vd_active_unmark): only the members are written, and rows without any are skipped. */
+__kernel void vd_active_compact_members(__global const uchar* member, __global const uint* row_offset, VdVolume vol,
+                                        __global int* list, __global int* compact, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int yz = get_global_id(0);
+  uint out = row_offset[yz];
+  if (row_offset[yz + 1] == out) return;
+  for (int x = 0; x < vol.dim_x; ++x) {
+    int i = yz * vol.dim_x + x;
+    if (member[i]) {
+      list[out] = i;
+      compact[i] = (int)out;
+      ++out;
+    }
+  }
+}
+
+/* compact[list[k]] = -1: one work item per member of the previous active set. */
+__kernel void vd_active_unmark(__global const int* list, __global int* compact, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  compact[list[get_global_id(0)]] = -1;
 }
 
 /* One work item per active point. */

@@ -8,7 +8,7 @@
  * in an untouched brick (shared/tsdf.h) get code 0 without reading the grid. */
 __kernel void vd_mc_classify(__global const float* tsdf, __global const float* weight, __global const uchar* touched,
                              VdVolume vol, __global const uchar* tri_counts, __global ushort* codes,
-                             __global uint* row_tris, int vd_items) {
+                             __global uint* row_tris, __global uchar* chunk_tris, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
@@ -16,21 +16,24 @@ __kernel void vd_mc_classify(__global const float* tsdf, __global const float* w
   uint total = 0u;
   for (int x0 = 0; x0 < vol.dim_x; x0 += VD_BRICK) {
     int x1 = vd_min_i(x0 + VD_BRICK, vol.dim_x);
+    uint chunk = 0u;
     if (!touched[brick_row + x0 / VD_BRICK]) {
       for (int x = x0; x < x1; ++x) codes[yz * vol.dim_x + x] = (ushort)0;
-      continue;
+    } else {
+      for (int x = x0; x < x1; ++x) {
+        uint code = vd_mc_cell_code(tsdf, weight, vol, x, y, z);
+        codes[yz * vol.dim_x + x] = (ushort)code;
+        chunk += (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
+      }
     }
-    for (int x = x0; x < x1; ++x) {
-      uint code = vd_mc_cell_code(tsdf, weight, vol, x, y, z);
-      codes[yz * vol.dim_x + x] = (ushort)code;
-      total += (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
-    }
+    chunk_tris[yz * vd_mc_chunks_x(vol) + x0 / VD_MC_CHUNK] = chunk > 0u ? (uchar)1 : (uchar)0;
+    total += chunk;
   }
   row_tris[yz] = total;
 }
 
-__kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* codes,
-                          __global const uint* row_tris, VdVolume vol, __global uchar* masks,
+__kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* codes, __global const uint* row_tris,
+                          __global const uchar* chunk_tris, VdVolume vol, __global uchar* masks,
                           __global uint* row_verts, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
@@ -41,10 +44,17 @@ __kernel void vd_mc_masks(__global const float* tsdf, __global const ushort* cod
     return;
   }
   uint total = 0u;
-  for (int x = 0; x < vol.dim_x; ++x) {
-    uint m = vd_mc_vertex_mask(tsdf, codes, vol, x, y, z);
-    masks[yz * vol.dim_x + x] = (uchar)m;
-    total += (uint)vd_popcount3(m);
+  for (int x0 = 0; x0 < vol.dim_x; x0 += VD_MC_CHUNK) {
+    int x1 = vd_min_i(x0 + VD_MC_CHUNK, vol.dim_x);
+    if (!vd_mc_chunk_near_cells(chunk_tris, vol, x0, x1, y, z)) {
+      for (int x = x0; x < x1; ++x) masks[yz * vol.dim_x + x] = 0;
+      continue;
+    }
+    for (int x = x0; x < x1; ++x) {
+      uint m = vd_mc_vertex_mask(tsdf, codes, vol, x, y, z);
+      masks[yz * vol.dim_x + x] = (uchar)m;
+      total += (uint)vd_popcount3(m);
+    }
   }
   row_verts[yz] = total;
 }

@@ -45,6 +45,25 @@ TEST(ActiveSetParityTest, SurfaceCellsPlusOneRingMatchCpu) {
   EXPECT_EQ(test::FromDevice(ctx, das.compact, n), ref.compact);
   EXPECT_EQ(test::FromDevice(ctx, das.neighbours, 6 * das.count), ref.neighbours);
 
+  // A second build into the same set on the same dims (the engine's every frame) writes only the old
+  // and the new members of the map: a smaller sphere elsewhere gives the CPU's set and a map that
+  // is -1 everywhere else, also where the first sphere's members were.
+  const test::AnalyticVolume other =
+      test::MakeSphereVolume(test::TestVolume(40, 36, 32, 0.01f, VD_F4(0, 0, 0, 1)), 0.16f, 0.2f, 0.14f, 0.071f);
+  const cpu::McMesh other_mesh = cpu::MarchingCubes(other.tsdf.data(), other.weight.data(), other.color.data(), vol);
+  const cpu::ActiveSet other_ref = cpu::BuildActiveSet(other_mesh.codes.data(), vol);
+  ASSERT_GT(other_ref.list.size(), 500u);
+  ASSERT_TRUE(ctx->Upload(dv.tsdf, other.tsdf.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.weight, other.weight.data(), n).ok());
+  ASSERT_TRUE(ops.MarkTouched(dv).ok());
+  ASSERT_TRUE(ops.MarchingCubes(dv, &dm).ok());
+  ASSERT_TRUE(ops.BuildActiveSet(dv, &das).ok());
+  EXPECT_EQ(das.kept.dim_x, vol.dim_x);
+  ASSERT_EQ(das.count, other_ref.list.size());
+  EXPECT_EQ(test::FromDevice(ctx, das.list, das.count), other_ref.list);
+  EXPECT_EQ(test::FromDevice(ctx, das.compact, n), other_ref.compact);
+  EXPECT_EQ(test::FromDevice(ctx, das.neighbours, 6 * das.count), other_ref.neighbours);
+
   // Every corner of every triangle-emitting cell is a member.
   const McTable& table = GetMcTable();
   for (size_t i = 0; i < n; ++i) {

@@ -77,6 +77,37 @@ VD_INLINE int vd_mc_row_has_cells(VD_GLOBAL const vd_uint* row_tris, VdVolume vo
   return 0;
 }
 
+/* Chunks: the dense grid's per-row passes also keep one flag per VD_MC_CHUNK consecutive points of
+ * a row (chunk c of row (y, z) at chunks[(y + dim_y z) * vd_mc_chunks_x + c]), so a later pass skips
+ * the chunks far from any flagged one without reading the grid: a row that crosses the surface
+ * crosses it in a few places. */
+#define VD_MC_CHUNK 8
+VD_INLINE int vd_mc_chunks_x(VdVolume vol) { return (vol.dim_x + VD_MC_CHUNK - 1) / VD_MC_CHUNK; }
+
+/* Whether a flagged chunk holds a point of [xa, xb] x [ya, yb] x [za, zb] (clamped to the grid). */
+VD_INLINE int vd_mc_chunks_any(VD_GLOBAL const vd_uchar* chunks, VdVolume vol, int xa, int xb, int ya, int yb, int za,
+                               int zb) {
+  xa = vd_max_i(xa, 0);
+  xb = vd_min_i(xb, vol.dim_x - 1);
+  ya = vd_max_i(ya, 0);
+  yb = vd_min_i(yb, vol.dim_y - 1);
+  za = vd_max_i(za, 0);
+  zb = vd_min_i(zb, vol.dim_z - 1);
+  int nc = vd_mc_chunks_x(vol);
+  for (int z = za; z <= zb; ++z)
+    for (int y = ya; y <= yb; ++y)
+      for (int c = xa / VD_MC_CHUNK; c <= xb / VD_MC_CHUNK && xa <= xb; ++c)
+        if (chunks[(y + vol.dim_y * z) * nc + c]) return 1;
+  return 0;
+}
+
+/* Whether a point of chunk [x0, x1) of row (y, z) may be a corner of a cell with triangles (chunk
+ * flags from vd_mc_classify): those cells' first corners lie in [x0 - 1, x1 - 1] x [y - 1, y] x
+ * [z - 1, z]. Vertex owners and the active set's surface points are such corners. */
+VD_INLINE int vd_mc_chunk_near_cells(VD_GLOBAL const vd_uchar* chunk_tris, VdVolume vol, int x0, int x1, int y, int z) {
+  return vd_mc_chunks_any(chunk_tris, vol, x0 - 1, x1 - 1, y - 1, y, z - 1, z);
+}
+
 /* Bit a set when grid point (x, y, z) owns a vertex on its edge along axis a. */
 VD_INLINE vd_uint vd_mc_vertex_mask(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_ushort* codes, VdVolume vol,
                                     int x, int y, int z) {

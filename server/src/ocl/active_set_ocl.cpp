@@ -14,10 +14,20 @@ Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_member_, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_count_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_offset_, rows + 1));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
+  // The map of the last build on these dims is -1 but at its members: clear those (before the list
+  // is reserved again, which may drop it). Otherwise start from a map of -1.
+  const bool kept = out->kept.dim_x == v.vol.dim_x && out->kept.dim_y == v.vol.dim_y &&
+                    out->kept.dim_z == v.vol.dim_z && out->compact.size() >= n;
+  out->kept = VdVolume{};
+  if (kept) {
+    VD_RETURN_IF_ERROR(ocl::kActiveUnmark(*ctx_, out->count, out->list, out->compact));
+  } else {
+    VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
+    VD_RETURN_IF_ERROR(ctx_->Fill(out->compact, int32_t{-1}, n));
+  }
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_surface_, rows));
-  VD_RETURN_IF_ERROR(ocl::kActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, v.vol, active_surface_,
-                                         active_row_surface_));
+  VD_RETURN_IF_ERROR(ocl::kActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, mc_chunk_tris_, v.vol,
+                                         active_surface_, active_row_surface_));
   VD_RETURN_IF_ERROR(
       ocl::kActiveDilate(*ctx_, rows, active_surface_, active_row_surface_, v.vol, active_member_, active_row_count_));
   uint32_t total = 0;
@@ -25,7 +35,11 @@ Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
   out->count = total;
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1)));
-  return ocl::CompactActiveSet(*ctx_, active_member_, active_row_offset_, v.vol, out);
+  VD_RETURN_IF_ERROR(
+      ocl::kActiveCompactMembers(*ctx_, rows, active_member_, active_row_offset_, v.vol, out->list, out->compact));
+  VD_RETURN_IF_ERROR(ocl::kActiveNeighbours(*ctx_, out->count, out->list, out->compact, v.vol, out->neighbours));
+  out->kept = v.vol;
+  return Status::Ok();
 }
 
 namespace ocl {

@@ -15,14 +15,21 @@ namespace vd::ocl {
 
 // One item per grid row (y, z).
 inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint8_t>& tri_counts,
-                             const Buffer<uint32_t>& row_tris, VdVolume vol, Buffer<uint8_t>& surface,
-                             Buffer<uint32_t>& row_surface)> kActiveSurface{"vd_active_surface"};
+                             const Buffer<uint32_t>& row_tris, const Buffer<uint8_t>& chunk_tris, VdVolume vol,
+                             Buffer<uint8_t>& surface, Buffer<uint32_t>& row_surface)>
+    kActiveSurface{"vd_active_surface"};
 // One item per grid row.
 inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<uint32_t>& row_surface, VdVolume vol,
                              Buffer<uint8_t>& member, Buffer<uint32_t>& row_count)> kActiveDilate{"vd_active_dilate"};
 // One item per grid row.
 inline constexpr Kernel<void(const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, VdVolume vol,
                              Buffer<int32_t>& list, Buffer<int32_t>& compact)> kActiveCompact{"vd_active_compact"};
+// One item per grid row.
+inline constexpr Kernel<void(const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, VdVolume vol,
+                             Buffer<int32_t>& list, Buffer<int32_t>& compact)>
+    kActiveCompactMembers{"vd_active_compact_members"};
+// One item per member of the previous active set.
+inline constexpr Kernel<void(const Buffer<int32_t>& list, Buffer<int32_t>& compact)> kActiveUnmark{"vd_active_unmark"};
 // One item per active point.
 inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
                              Buffer<int32_t>& neighbours)> kActiveNeighbours{"vd_active_neighbours"};

@@ -69,6 +69,10 @@ struct DeviceActiveSet {
   // 6 compact neighbour indices per member (-x, +x, -y, +y, -z, +z), -1 where not in M.
   ocl::Buffer<int32_t> neighbours;
   size_t count = 0;
+  // The dense grid BuildActiveSet last mapped into compact, which then holds -1 everywhere but at
+  // list's members: the next build on the same dims clears the old members and writes the new
+  // ones instead of the whole map. dim_x 0: not kept (anyone else who writes compact or list).
+  VdVolume kept{};
 };
 
 class DeviceOps {
@@ -163,6 +167,8 @@ class DeviceOps {
   ocl::Buffer<uint32_t> mc_vert_offset_;
   // Per grid row: triangle and vertex totals and their exclusive prefix sums.
   ocl::Buffer<uint32_t> mc_row_tris_;
+  // Dense grid only: per VD_MC_CHUNK cells of a row, whether one has triangles (shared/marching_cubes.h).
+  ocl::Buffer<uint8_t> mc_chunk_tris_;
   ocl::Buffer<uint32_t> mc_row_verts_;
   ocl::Buffer<uint32_t> mc_row_tri_offset_;
   ocl::Buffer<uint32_t> mc_row_vert_offset_;

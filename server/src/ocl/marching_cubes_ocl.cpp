@@ -32,9 +32,11 @@ StatusOr<bool> DeviceOps::SizeMesh(size_t rows, DeviceMesh* mesh) {
 Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   const size_t n = v.num_voxels(), rows = v.num_rows();
   VD_RETURN_IF_ERROR(ReserveMarchingCubes(n, rows));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_chunk_tris_, rows * vd_mc_chunks_x(v.vol)));
+  VD_RETURN_IF_ERROR(ocl::kMcClassify(*ctx_, rows, v.tsdf, v.weight, v.touched, v.vol, mc_tri_counts_, mc_codes_,
+                                      mc_row_tris_, mc_chunk_tris_));
   VD_RETURN_IF_ERROR(
-      ocl::kMcClassify(*ctx_, rows, v.tsdf, v.weight, v.touched, v.vol, mc_tri_counts_, mc_codes_, mc_row_tris_));
-  VD_RETURN_IF_ERROR(ocl::kMcMasks(*ctx_, rows, v.tsdf, mc_codes_, mc_row_tris_, v.vol, mc_masks_, mc_row_verts_));
+      ocl::kMcMasks(*ctx_, rows, v.tsdf, mc_codes_, mc_row_tris_, mc_chunk_tris_, v.vol, mc_masks_, mc_row_verts_));
   VD_ASSIGN_OR_RETURN(const bool any, SizeMesh(rows, mesh));
   if (!any) return Status::Ok();
   VD_RETURN_IF_ERROR(ocl::kMcVertices(*ctx_, rows, v.tsdf, v.color, v.vol, mc_masks_, mc_row_verts_,

@@ -12,12 +12,13 @@ namespace vd::ocl {
 // One item per grid row (y, z), as for every marching-cubes pass.
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<float>& weight, const Buffer<uint8_t>& touched,
                              VdVolume vol, const Buffer<uint8_t>& tri_counts, Buffer<uint16_t>& codes,
-                             Buffer<uint32_t>& row_tris)>
+                             Buffer<uint32_t>& row_tris, Buffer<uint8_t>& chunk_tris)>
     kMcClassify{"vd_mc_classify"};
 // One item per grid row.
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint16_t>& codes, const Buffer<uint32_t>& row_tris,
-                             VdVolume vol, Buffer<uint8_t>& masks,
-                             Buffer<uint32_t>& row_verts)> kMcMasks{"vd_mc_masks"};
+                             const Buffer<uint8_t>& chunk_tris, VdVolume vol, Buffer<uint8_t>& masks,
+                             Buffer<uint32_t>& row_verts)>
+    kMcMasks{"vd_mc_masks"};
 // One item per grid row.
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint32_t>& color, VdVolume vol,
                              const Buffer<uint8_t>& masks, const Buffer<uint32_t>& row_verts,

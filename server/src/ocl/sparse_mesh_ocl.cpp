@@ -38,6 +38,7 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   if (mc_codes_.size() < n || table.neighbours().size() < size_t(VD_BRICK_NEIGHBOURS) * counts.used)
     return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on these bricks");
   out->count = 0;
+  out->kept = VdVolume{};
   if (counts.used == 0) return Status::Ok();
   const ocl::Buffer<int32_t>& nbr = table.neighbours();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_surface_, n));
