@@ -55,10 +55,32 @@ VD_INLINE float vd_raster_pixel_depth(VdRasterTri r, int x, int y) {
   return 1.0f / vd_raster_inv_depth(r, w0, w1, w2);
 }
 
-/* The one pass over triangles: per covered pixel, min(depth bits << 32 | t). */
+/* What the per-pixel pass needs of a triangle's set-up, kept by the triangle pass so that it is not
+ * built again at every pixel the triangle won: the oriented corners in 1/256 px (under 2^31 by
+ * VD_RASTER_MAX_PX), 1 / z of the caller's corners and whether b and c were swapped. */
+typedef struct {
+  int ax, ay, bx, by, cx, cy;
+  float iz0, iz1, iz2;
+  int swapped;
+} VdRasterSetup;
+
+/* The one pass over triangles: per covered pixel, min(depth bits << 32 | t); triangle t's set-up
+ * into setups[t]. */
 VD_INLINE void vd_raster_triangle(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const int* tris, int t, VdPose T,
-                                  VdCamera cam, VD_GLOBAL vd_ulong* depth_id) {
+                                  VdCamera cam, VD_GLOBAL vd_ulong* depth_id, VD_GLOBAL VdRasterSetup* setups) {
   VdRasterTri r = vd_raster_setup(pos, tris, t, T, cam);
+  VdRasterSetup s;
+  s.ax = (int)r.a.x;
+  s.ay = (int)r.a.y;
+  s.bx = (int)r.b.x;
+  s.by = (int)r.b.y;
+  s.cx = (int)r.c.x;
+  s.cy = (int)r.c.y;
+  s.iz0 = r.iz0;
+  s.iz1 = r.iz1;
+  s.iz2 = r.iz2;
+  s.swapped = r.swapped;
+  setups[t] = s;
   for (int y = r.box.y0; y <= r.box.y1; ++y) {
     for (int x = r.box.x0; x <= r.box.x1; ++x) {
       const float z = vd_raster_pixel_depth(r, x, y);
@@ -77,16 +99,18 @@ VD_INLINE vd_uint vd_raster_id(vd_ulong depth_id) {
  * the perspective-correct barycentrics (w = 1 valid; the triangle is t, VD_RASTER_EMPTY for none),
  * used to pair and to lift points. */
 VD_INLINE void vd_raster_resolve_pixel(VD_GLOBAL const vd_float4* pos, VD_GLOBAL const vd_float4* nrm,
-                                       VD_GLOBAL const int* tris, VdPose T, VdCamera cam, int pix, vd_uint t,
-                                       vd_float4* vertex, vd_float4* normal, vd_float4* bary) {
+                                       VD_GLOBAL const int* tris, VD_GLOBAL const VdRasterSetup* setups, VdPose T,
+                                       VdCamera cam, int pix, vd_uint t, vd_float4* vertex, vd_float4* normal,
+                                       vd_float4* bary) {
   *vertex = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   *normal = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   *bary = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   if (t == VD_RASTER_EMPTY) return;
-  VdRasterTri r = vd_raster_setup(pos, tris, (int)t, T, cam);
-  vd_long e0, e1, e2;
-  vd_raster_cover(r, pix % cam.width, pix / cam.width, &e0, &e1, &e2);
-  const vd_float4 b = vd_raster_bary(r, e0, e1, e2);
+  const VdRasterSetup s = setups[t];
+  vd_long ea, eb, ec, e0, e1, e2;
+  vd_raster_edges(s.ax, s.ay, s.bx, s.by, s.cx, s.cy, s.swapped, pix % cam.width, pix / cam.width, &ea, &eb, &ec, &e0,
+                  &e1, &e2);
+  const vd_float4 b = vd_raster_bary_iz(s.iz0, s.iz1, s.iz2, e0, e1, e2);
   const float w0 = b.x, w1 = b.y, w2 = b.z;
   int i0 = tris[3 * t + 0], i1 = tris[3 * t + 1], i2 = tris[3 * t + 2];
   vd_float4 p = pos[i0] * w0 + pos[i1] * w1 + pos[i2] * w2;

@@ -111,16 +111,26 @@ VD_INLINE VdRasterTri vd_raster_tri(VdRasterCorner c0, VdRasterCorner c1, VdRast
   return r;
 }
 
-/* Edge functions at the centre of pixel (x, y) for the caller's corners 0, 1, 2 (each that
- * corner's screen-space barycentric times the area); returns 1 when the triangle covers it. */
-VD_INLINE int vd_raster_cover(VdRasterTri r, int x, int y, vd_long* w0, vd_long* w1, vd_long* w2) {
+/* The edge functions at the centre of pixel (x, y) of the oriented corners a, b, c (opposite a, b,
+ * c: ea, eb, ec) and, in *w0..*w2, the same for the caller's corners 0, 1, 2 (each that corner's
+ * screen-space barycentric times the area). */
+VD_INLINE void vd_raster_edges(vd_long ax, vd_long ay, vd_long bx, vd_long by, vd_long cx, vd_long cy, int swapped,
+                               int x, int y, vd_long* ea, vd_long* eb, vd_long* ec, vd_long* w0, vd_long* w1,
+                               vd_long* w2) {
   const vd_long sx = (vd_long)x << VD_RASTER_SUB_BITS, sy = (vd_long)y << VD_RASTER_SUB_BITS;
-  const vd_long ea = vd_raster_edge(r.b.x, r.b.y, r.c.x, r.c.y, sx, sy);
-  const vd_long eb = vd_raster_edge(r.c.x, r.c.y, r.a.x, r.a.y, sx, sy);
-  const vd_long ec = vd_raster_edge(r.a.x, r.a.y, r.b.x, r.b.y, sx, sy);
-  *w0 = ea;
-  *w1 = r.swapped ? ec : eb;
-  *w2 = r.swapped ? eb : ec;
+  *ea = vd_raster_edge(bx, by, cx, cy, sx, sy);
+  *eb = vd_raster_edge(cx, cy, ax, ay, sx, sy);
+  *ec = vd_raster_edge(ax, ay, bx, by, sx, sy);
+  *w0 = *ea;
+  *w1 = swapped ? *ec : *eb;
+  *w2 = swapped ? *eb : *ec;
+}
+
+/* Edge functions at the centre of pixel (x, y) for the caller's corners 0, 1, 2 (vd_raster_edges);
+ * returns 1 when the triangle covers it. */
+VD_INLINE int vd_raster_cover(VdRasterTri r, int x, int y, vd_long* w0, vd_long* w1, vd_long* w2) {
+  vd_long ea, eb, ec;
+  vd_raster_edges(r.a.x, r.a.y, r.b.x, r.b.y, r.c.x, r.c.y, r.swapped, x, y, &ea, &eb, &ec, w0, w1, w2);
   return ea + r.bias_a >= 0 && eb + r.bias_b >= 0 && ec + r.bias_c >= 0;
 }
 
@@ -130,11 +140,16 @@ VD_INLINE float vd_raster_inv_depth(VdRasterTri r, vd_long w0, vd_long w1, vd_lo
 }
 
 /* Perspective-correct barycentrics (x, y, z for corners 0, 1, 2; w = 0) at edge functions
- * (w0, w1, w2) of a covered centre: the weights for interpolating vertex attributes. */
-VD_INLINE vd_float4 vd_raster_bary(VdRasterTri r, vd_long w0, vd_long w1, vd_long w2) {
-  const float b0 = (float)w0 * r.iz0, b1 = (float)w1 * r.iz1, b2 = (float)w2 * r.iz2;
+ * (w0, w1, w2) of a covered centre, from 1 / z of the three corners: the weights for
+ * interpolating vertex attributes. */
+VD_INLINE vd_float4 vd_raster_bary_iz(float iz0, float iz1, float iz2, vd_long w0, vd_long w1, vd_long w2) {
+  const float b0 = (float)w0 * iz0, b1 = (float)w1 * iz1, b2 = (float)w2 * iz2;
   const float inv = 1.0f / (b0 + b1 + b2);
   return VD_F4(b0 * inv, b1 * inv, b2 * inv, 0.0f);
+}
+
+VD_INLINE vd_float4 vd_raster_bary(VdRasterTri r, vd_long w0, vd_long w1, vd_long w2) {
+  return vd_raster_bary_iz(r.iz0, r.iz1, r.iz2, w0, w1, w2);
 }
 
 #endif /* VD_RASTER_MATH_H */

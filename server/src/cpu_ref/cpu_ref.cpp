@@ -228,14 +228,15 @@ void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32
   out->vertex.resize(n);
   out->normal.resize(n);
   out->bary.resize(n);
+  std::vector<VdRasterSetup> setups(std::max(num_triangles, 1));
 #pragma omp parallel for schedule(dynamic, 256)
   for (int t = 0; t < num_triangles; ++t)
-    vd_raster_triangle(positions, triangles, t, world_to_cam, cam, out->depth_id.data());
+    vd_raster_triangle(positions, triangles, t, world_to_cam, cam, out->depth_id.data(), setups.data());
 #pragma omp parallel for schedule(static)
   for (int i = 0; i < n; ++i) {
     out->ids[i] = vd_raster_id(out->depth_id[i]);
-    vd_raster_resolve_pixel(positions, normals, triangles, world_to_cam, cam, i, out->ids[i], &out->vertex[i],
-                            &out->normal[i], &out->bary[i]);
+    vd_raster_resolve_pixel(positions, normals, triangles, setups.data(), world_to_cam, cam, i, out->ids[i],
+                            &out->vertex[i], &out->normal[i], &out->bary[i]);
   }
 }
 

@@ -8,6 +8,7 @@
 #include "ocl/ocl.h"
 #include "shared/correspondence.h"
 #include "shared/icp.h"
+#include "shared/raster.h"
 #include "shared/tsdf.h"
 #include "shared/vd_types.h"
 
@@ -166,6 +167,8 @@ class DeviceOps {
   ocl::Buffer<uint8_t> mc_masks_;
   ocl::Buffer<uint32_t> mc_vert_offset_;
   // Per grid row: triangle and vertex totals and their exclusive prefix sums.
+  // Per triangle of the last Rasterize, its set-up (shared/raster.h), read by the resolve.
+  ocl::Buffer<VdRasterSetup> raster_setups_;
   ocl::Buffer<uint32_t> mc_row_tris_;
   // Dense grid only: per VD_MC_CHUNK cells of a row, whether one has triangles (shared/marching_cubes.h).
   ocl::Buffer<uint8_t> mc_chunk_tris_;
