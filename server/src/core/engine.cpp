@@ -13,6 +13,7 @@
 #include "ocl/solver_ocl.h"
 #include "vd/common/flags.h"
 #include "vd/common/log.h"
+#include "vd/common/thread_name.h"
 
 namespace vd {
 namespace {
@@ -92,6 +93,10 @@ void EngineParams::Bind(FlagParser* f) {
          "Half-width in pixels of the depth window that must all see free space before a grid point is carved");
   f->Section("Depth preprocessing");
   f->AddNegation("no-bilateral", &bilateral, "Track on the unfiltered depth");
+  f->Add("prefetch-preprocess", &prefetch_preprocess,
+         "Preprocess the next frame on a second device queue while this one is solved: on, off, or auto (on for a "
+         "GPU; on 2 CPU cores it bought nothing)",
+         "auto|on|off");
   f->Add("bilateral-radius", &bilateral_radius, "Radius of the bilateral filter, pixels");
   f->Add("bilateral-sigma-space", &bilateral_sigma_space_px, "Spatial sigma of the bilateral filter, pixels");
   f->Add("bilateral-sigma-depth", &bilateral_sigma_depth_m, "Depth sigma of the bilateral filter, metres");
@@ -144,6 +149,8 @@ Status EngineParams::Validate() const {
   if (!(max_weight >= 1.f && max_weight <= 1e4f)) return ParamOutOfBounds("EngineParams", "max_weight", max_weight, "1 <= max_weight <= 1e4");
   if (!(min_depth >= 0.f && min_depth < max_depth)) return ParamOutOfBounds("EngineParams", "min_depth", min_depth, "0 <= min_depth < max_depth");
   if (!(max_depth <= 20.f)) return ParamOutOfBounds("EngineParams", "max_depth", max_depth, "max_depth <= 20 m");
+  if (prefetch_preprocess != "auto" && prefetch_preprocess != "on" && prefetch_preprocess != "off")
+    return InvalidArgument("--prefetch-preprocess expects auto, on or off, got '" + prefetch_preprocess + "'");
   if (!(max_grid_mb >= 1.0 && max_grid_mb <= 64000.0)) return ParamOutOfBounds("EngineParams", "max_grid_mb", max_grid_mb, "1 <= max_grid_mb <= 64000");
   if (!(volume_margin >= 0.f && volume_margin <= 2.f)) return ParamOutOfBounds("EngineParams", "volume_margin", volume_margin, "0 <= volume_margin <= 2 m");
   if (!(bilateral_radius >= 1 && bilateral_radius <= 7)) return ParamOutOfBounds("EngineParams", "bilateral_radius", bilateral_radius, "1 <= r <= 7");
@@ -191,8 +198,26 @@ StatusOr<std::unique_ptr<Engine>> Engine::Create(const EngineParams& params, con
   if (params.features.enabled && ctx->device().is_cpu) cv::setNumThreads(1);
   std::unique_ptr<Engine> e(new Engine(params, std::move(ctx)));
   VD_RETURN_IF_ERROR(e->ops_.Init());
+  // Pipelining needs the second queue; without one every frame is preprocessed in Process.
+  const bool prefetch =
+      params.prefetch_preprocess == "on" || (params.prefetch_preprocess == "auto" && e->ctx_->device().is_gpu);
+  if (!prefetch) return e;
+  if (auto sibling = e->ctx_->CreateSibling(); sibling.ok()) {
+    e->prep_ctx_ = std::move(sibling).value();
+    e->prep_ops_ = std::make_unique<DeviceOps>(e->prep_ctx_.get());
+    if (Status s = e->prep_ops_->Init(); !s.ok()) {
+      VD_LOG_WARNING << "no second OpenCL queue, frames are preprocessed one after another: " << s.ToString();
+      e->prep_ops_.reset();
+      e->prep_ctx_.reset();
+    }
+  } else {
+    VD_LOG_WARNING << "no second OpenCL queue, frames are preprocessed one after another: "
+                   << sibling.status().ToString();
+  }
   return e;
 }
+
+Engine::~Engine() { DropPrefetch(); }
 
 Engine::Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx)
     : params_(params),
@@ -208,7 +233,91 @@ bool Engine::SparseEnabled() const {
 }
 
 void Engine::Prefetch(const RgbdFrame& next) {
-  if (SparseEnabled() && next.Validate().ok()) extractor_.Prefetch(next);
+  if (!next.Validate().ok()) return;
+  if (SparseEnabled()) extractor_.Prefetch(next);
+  if (!prep_ops_) return;
+  std::vector<Prefetched> dropped;
+  {
+    std::lock_guard<std::mutex> lock(prep_mu_);
+    if (prefetched_.count(next.seq)) return;
+    while (prefetched_.size() >= kMaxPrefetched) {
+      dropped.push_back(std::move(prefetched_.begin()->second));
+      prefetched_.erase(prefetched_.begin());
+    }
+    Prefetched& p = prefetched_[next.seq];
+    if (!spare_maps_.empty()) {
+      p.maps = std::move(spare_maps_.back());
+      spare_maps_.pop_back();
+    } else {
+      p.maps = std::make_unique<FrameMaps>();
+    }
+    p.frame = std::make_unique<RgbdFrame>(next);
+    p.frame->color = next.color.clone();
+    p.frame->depth = next.depth.clone();
+    if (prep_window_) LaunchPrefetch(&p);
+  }
+  // A dropped one's thread still writes its maps: they are freed only after it ends.
+  for (Prefetched& p : dropped)
+    if (p.done.valid()) p.done.wait();
+}
+
+void Engine::LaunchPrefetch(Prefetched* p) {
+  p->done = std::async(std::launch::async, [this, maps = p->maps.get(), frame = p->frame.get()]() {
+    NameThisThread("vd-prep");
+    return Preprocess(*prep_ctx_, *prep_ops_, *frame, maps);
+  });
+}
+
+void Engine::SetPrefetchWindow(bool open) {
+  std::lock_guard<std::mutex> lock(prep_mu_);
+  prep_window_ = open;
+  if (!open) return;
+  for (auto& [seq, p] : prefetched_)
+    if (!p.done.valid()) LaunchPrefetch(&p);
+}
+
+void Engine::DropPrefetch() {
+  std::map<int64_t, Prefetched> dropped;
+  {
+    std::lock_guard<std::mutex> lock(prep_mu_);
+    dropped.swap(prefetched_);
+  }
+  for (auto& [seq, p] : dropped)
+    if (p.done.valid()) p.done.wait();
+}
+
+Status Engine::TakeMaps(const RgbdFrame& frame) {
+  std::optional<Prefetched> mine;
+  std::vector<Prefetched> stale;
+  {
+    std::lock_guard<std::mutex> lock(prep_mu_);
+    for (auto it = prefetched_.begin(); it != prefetched_.end() && it->first <= frame.seq;) {
+      if (it->first == frame.seq)
+        mine = std::move(it->second);
+      else
+        stale.push_back(std::move(it->second));
+      it = prefetched_.erase(it);
+    }
+  }
+  for (Prefetched& p : stale)
+    if (p.done.valid()) p.done.wait();
+  Status built = FailedPrecondition("not prefetched");
+  if (mine && mine->done.valid()) {
+    built = mine->done.get();
+    // The same size, or it was built for another stream's frame of this number.
+    if (built.ok() &&
+        (mine->maps->cam.width != frame.intrinsics.width || mine->maps->cam.height != frame.intrinsics.height))
+      built = FailedPrecondition("prefetched at another size");
+    if (built.ok()) std::swap(maps_, *mine->maps);
+  }
+  {
+    std::lock_guard<std::mutex> lock(prep_mu_);
+    for (Prefetched& p : stale) spare_maps_.push_back(std::move(p.maps));
+    if (mine) spare_maps_.push_back(std::move(mine->maps));
+  }
+  // A failed or mismatched prefetch: preprocessed here, where a failure that recurs is returned.
+  if (built.ok()) return Status::Ok();
+  return Preprocess(*ctx_, ops_, frame, &maps_);
 }
 
 Status Engine::DownloadDeformation(std::vector<vd_float4>* def_pos) {
@@ -333,6 +442,7 @@ Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
 }
 
 void Engine::Reset() {
+  DropPrefetch();
   initialised_ = false;
   frames_fused_ = 0;
   frames_seen_ = 0;
@@ -506,53 +616,53 @@ StatusOr<VdVolume> Engine::PlaceVolume(const RgbdFrame& frame, const EngineParam
   return vol;
 }
 
-Status Engine::Preprocess(const RgbdFrame& frame) {
+Status Engine::Preprocess(ocl::Context& ctx, DeviceOps& ops, const RgbdFrame& frame, FrameMaps* out) const {
   const Intrinsics& k = frame.intrinsics;
   const size_t n = static_cast<size_t>(k.width) * k.height;
-  cam_ = ToVdCamera(k);
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&raw_depth_, n));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&rgba_, n));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&depth_raw_m_, n));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&scratch_, n));
+  FrameMaps& m = *out;
+  m.cam = ToVdCamera(k);
+  VD_RETURN_IF_ERROR(ctx.Reserve(&m.raw_depth, n));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&m.rgba, n));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&m.depth_raw_m, n));
   for (int l = 0; l < 3; ++l) {
     const size_t nl = static_cast<size_t>(k.width >> l) * (k.height >> l);
-    VD_RETURN_IF_ERROR(ctx_->Reserve(&depth_[l], nl));
-    VD_RETURN_IF_ERROR(ctx_->Reserve(&vmap_[l], nl));
-    VD_RETURN_IF_ERROR(ctx_->Reserve(&nmap_[l], nl));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&m.depth[l], nl));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&m.vmap[l], nl));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&m.nmap[l], nl));
   }
   const cv::Mat depth = frame.depth.isContinuous() ? frame.depth : frame.depth.clone();
-  // Valid pixels in range, the reference for the tracking failure check.
-  valid_pixels_ = 0;
+  m.valid_pixels = 0;
   const uint16_t lo = uint16_t(std::clamp(params_.min_depth * frame.depth_scale, 1.f, 65535.f));
   const uint16_t hi = uint16_t(std::clamp(params_.max_depth * frame.depth_scale, 1.f, 65535.f));
   for (size_t i = 0; i < n; ++i) {
     const uint16_t d = depth.ptr<uint16_t>()[i];
-    valid_pixels_ += d >= lo && d <= hi;
+    m.valid_pixels += d >= lo && d <= hi;
   }
-  VD_RETURN_IF_ERROR(ctx_->Upload(raw_depth_, depth.ptr<uint16_t>(), n));
-  rgba_host_.resize(n);
+  VD_RETURN_IF_ERROR(ctx.Upload(m.raw_depth, depth.ptr<uint16_t>(), n));
+  m.rgba_host.resize(n);
   if (frame.color.empty()) {
-    std::fill(rgba_host_.begin(), rgba_host_.end(), 0u);
+    std::fill(m.rgba_host.begin(), m.rgba_host.end(), 0u);
   } else {
-    cv::Mat rgba(k.height, k.width, CV_8UC4, rgba_host_.data());
+    cv::Mat rgba(k.height, k.width, CV_8UC4, m.rgba_host.data());
     cv::cvtColor(frame.color, rgba, cv::COLOR_BGR2RGBA);
   }
-  VD_RETURN_IF_ERROR(ctx_->Upload(rgba_, rgba_host_.data(), n));
-  VD_RETURN_IF_ERROR(
-      ops_.DepthConvert(raw_depth_, depth_raw_m_, int(n), 1.f / frame.depth_scale, params_.min_depth, params_.max_depth));
+  VD_RETURN_IF_ERROR(ctx.Upload(m.rgba, m.rgba_host.data(), n));
+  VD_RETURN_IF_ERROR(ops.DepthConvert(m.raw_depth, m.depth_raw_m, int(n), 1.f / frame.depth_scale, params_.min_depth,
+                                      params_.max_depth));
   if (params_.bilateral) {
-    VD_RETURN_IF_ERROR(ops_.Bilateral(depth_raw_m_, depth_[0], k.width, k.height, params_.bilateral_radius,
-                                      params_.bilateral_sigma_space_px, params_.bilateral_sigma_depth_m));
+    VD_RETURN_IF_ERROR(ops.Bilateral(m.depth_raw_m, m.depth[0], k.width, k.height, params_.bilateral_radius,
+                                     params_.bilateral_sigma_space_px, params_.bilateral_sigma_depth_m));
   } else {
-    VD_RETURN_IF_ERROR(ctx_->Copy(depth_raw_m_, depth_[0], n));
+    VD_RETURN_IF_ERROR(ctx.Copy(m.depth_raw_m, m.depth[0], n));
   }
   for (int l = 0; l < 3; ++l) {
-    const VdCamera cl = ScaledCamera(cam_, l);
-    if (l > 0) VD_RETURN_IF_ERROR(ops_.PyrDown(depth_[l - 1], depth_[l], k.width >> (l - 1), k.height >> (l - 1), 0.05f));
-    VD_RETURN_IF_ERROR(ops_.VertexMap(depth_[l], vmap_[l], cl));
-    VD_RETURN_IF_ERROR(ops_.NormalMap(vmap_[l], nmap_[l], cl.width, cl.height, params_.normal_max_jump));
+    const VdCamera cl = ScaledCamera(m.cam, l);
+    if (l > 0)
+      VD_RETURN_IF_ERROR(ops.PyrDown(m.depth[l - 1], m.depth[l], k.width >> (l - 1), k.height >> (l - 1), 0.05f));
+    VD_RETURN_IF_ERROR(ops.VertexMap(m.depth[l], m.vmap[l], cl));
+    VD_RETURN_IF_ERROR(ops.NormalMap(m.vmap[l], m.nmap[l], cl.width, cl.height, params_.normal_max_jump));
   }
-  return ctx_->Finish();
+  return ctx.Finish();
 }
 
 Status Engine::Track(FrameResult* result) {
@@ -583,7 +693,8 @@ Status Engine::Track(FrameResult* result) {
       prm.max_distance = params_.icp_max_distance;
       prm.min_normal_dot = min_dot;
       double acc[VD_ICP_ACC];
-      VD_RETURN_IF_ERROR(ops_.IcpReduce(vmap_[l], nmap_[l], model_.vertex, model_.normal, cl.width * cl.height, prm, acc));
+      VD_RETURN_IF_ERROR(
+          ops_.IcpReduce(maps_.vmap[l], maps_.nmap[l], model_.vertex, model_.normal, cl.width * cl.height, prm, acc));
       sys = IcpSystem::FromAccumulator(acc);
       if (sys.inliers < 6) break;
       const PoseStep step = SolvePoseStep(sys, pose_pairs_, T, xi_total, step_params);
@@ -599,7 +710,7 @@ Status Engine::Track(FrameResult* result) {
   limits.min_inlier_fraction = params_.min_inlier_fraction;
   limits.max_translation = params_.max_frame_translation;
   limits.max_rotation_deg = params_.max_frame_rotation_deg;
-  const std::string why = CheckTracking(pose_, T, sys.inliers, valid_pixels_, limits);
+  const std::string why = CheckTracking(pose_, T, sys.inliers, maps_.valid_pixels, limits);
   if (!why.empty()) {
     result->tracking_ok = false;
     result->tracking_message = why + "; kept the last good pose";
@@ -749,7 +860,7 @@ Status Engine::NonRigid(FrameResult* result) {
     // The deformed mesh at the current pose: each pixel pairs a model sample with its observation.
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
     VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
-    VD_RETURN_IF_ERROR(ops_.Correspondences(live_, vmap_[0], nmap_[0], mesh_, cp, corr_));
+    VD_RETURN_IF_ERROR(ops_.Correspondences(live_, maps_.vmap[0], maps_.nmap[0], mesh_, cp, corr_));
     const bool energies = nonrigid_solves_++ % params_.solver.energy_interval == 0;
     VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, total, energies));
     VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
@@ -775,7 +886,8 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   const bool sparse = SparseEnabled();
   if (sparse) extractor_.Prefetch(frame);
   auto t0 = Clock::now();
-  VD_RETURN_IF_ERROR(Preprocess(frame));
+  VD_RETURN_IF_ERROR(TakeMaps(frame));
+  cam_ = maps_.cam;
   result.times[Stage::kPreprocess] = MsSince(t0);
 
   // The field exists, has been fused into and has a surface: the non-rigid path runs.
@@ -833,6 +945,13 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   }
   result.sparse_matches = int(matches_.size());
   ++frames_seen_;
+  // The next frame's preprocessing may start now, beside the solve and the fusion (the device has
+  // gaps there: host round trips); it is closed again however this call ends.
+  struct WindowCloser {
+    Engine* e;
+    ~WindowCloser() { e->SetPrefetchWindow(false); }
+  } closer{this};
+  SetPrefetchWindow(true);
   if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0) {
     t0 = Clock::now();
     VD_RETURN_IF_ERROR(NonRigid(&result));
@@ -878,11 +997,11 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       fp.carve_rate = params_.carve_rate;
       fp.carve_radius = params_.carve_radius;
       VD_RETURN_IF_ERROR(
-          ops_.IntegrateActive(volume_, active_, fp, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
+          ops_.IntegrateActive(volume_, active_, fp, cam_, ToVdPose(pose_.inverse()), maps_.depth_raw_m, maps_.rgba));
     } else if (bricks_) {
       VD_RETURN_IF_ERROR(IntegrateBricks(&result));
     } else {
-      VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
+      VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), maps_.depth_raw_m, maps_.rgba));
     }
     VD_RETURN_IF_ERROR(ctx_->Finish());
     result.times[Stage::kIntegrate] = MsSince(t0);
@@ -949,7 +1068,7 @@ Status Engine::IntegrateBricks(FrameResult* result) {
   const float brick = VD_BRICK * vol.voxel_size;
   const VdPose cam_to_world = ToVdPose(pose_);
   auto allocate = [&]() -> StatusOr<ocl::BrickCounts> {
-    VD_RETURN_IF_ERROR(bricks_->AllocateAndList(*ctx_, depth_raw_m_, cam_, cam_to_world, vol.truncation, brick));
+    VD_RETURN_IF_ERROR(bricks_->AllocateAndList(*ctx_, maps_.depth_raw_m, cam_, cam_to_world, vol.truncation, brick));
     return bricks_->Counts(*ctx_);
   };
   VD_ASSIGN_OR_RETURN(ocl::BrickCounts counts, allocate());
@@ -969,8 +1088,8 @@ Status Engine::IntegrateBricks(FrameResult* result) {
   // The voxels follow the bricks handed out, half as many again ahead so growth stays rare.
   if (counts.used > pool_->slots)
     VD_RETURN_IF_ERROR(pool_->Grow(*ctx_, std::min(bricks_->pool(), counts.used + counts.used / 2)));
-  VD_RETURN_IF_ERROR(
-      ocl::IntegrateBricks(*ctx_, *bricks_, *pool_, vol, cam_, ToVdPose(pose_.inverse()), depth_raw_m_, rgba_));
+  VD_RETURN_IF_ERROR(ocl::IntegrateBricks(*ctx_, *bricks_, *pool_, vol, cam_, ToVdPose(pose_.inverse()),
+                                          maps_.depth_raw_m, maps_.rgba));
   result->bricks_used = counts.used;
   result->bricks_pool = bricks_->pool();
   result->bricks_evicted_total = bricks_evicted_;

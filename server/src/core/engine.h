@@ -1,14 +1,16 @@
 #pragma once
 // The reconstruction engine: one RGB-D frame in, the live mesh, the pose and statistics out.
 // Every heavy step runs as an OpenCL kernel (server/kernels); this class orders them.
+#include <Eigen/Geometry>
 #include <array>
 #include <cstdint>
+#include <future>
+#include <map>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 #include "core/checkpoint.h"
 #include "core/features.h"
@@ -40,6 +42,10 @@ struct EngineParams {
   float volume_margin = 0.10f;
   // Edge-preserving smoothing of the depth used for tracking (fusion uses the raw depth).
   bool bilateral = true;
+  // Preprocess the next frame on a second device queue while this one is solved (Engine::Prefetch):
+  // "on", "off", or "auto" = on for a GPU. On 2 CPU cores through PoCL it bought nothing, as the
+  // cores have little idle time to fill (0.91-1.06 of the frame time, docs/BENCHMARKS.md).
+  std::string prefetch_preprocess = "auto";
   int bilateral_radius = 2;
   float bilateral_sigma_space_px = 3.f;
   float bilateral_sigma_depth_m = 0.02f;
@@ -197,12 +203,17 @@ class Engine {
  public:
   // device_spec as for ocl::Context::Create.
   static StatusOr<std::unique_ptr<Engine>> Create(const EngineParams& params, const std::string& device_spec);
+  // Waits for a prefetch in flight.
+  ~Engine();
 
   // Processes one frame. Errors are returned for bad input or device failure; a tracking failure
   // is a successful call with tracking_ok == false.
   StatusOr<FrameResult> Process(const RgbdFrame& frame);
-  // Starts feature detection for a frame that will be processed next, so it runs while the
-  // current frame is solved (optional: Process extracts what was not prefetched).
+  // Starts feature detection and the device preprocessing (on a second queue) for a frame that
+  // will be processed next, so both run while the current frame is solved. Optional: Process does
+  // what was not prefetched. Safe to call from another thread than Process's; a frame prefetched
+  // for a later one than the frame processed is kept, an earlier one is dropped, and beyond two
+  // the oldest gives way.
   void Prefetch(const RgbdFrame& next);
   // Drops the model; the next frame starts a new one.
   void Reset();
@@ -247,7 +258,27 @@ class Engine {
 
  private:
   Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx);
-  Status Preprocess(const RgbdFrame& frame);
+  // One frame's device input and pyramid. The engine holds the current frame's (maps_) and those
+  // Prefetch builds on a second queue while the current frame is solved; Process then swaps one in
+  // instead of preprocessing.
+  struct FrameMaps {
+    VdCamera cam{};
+    // Valid pixels in range, the reference for the tracking failure check.
+    int valid_pixels = 0;
+    ocl::Buffer<uint16_t> raw_depth;
+    ocl::Buffer<uint32_t> rgba;
+    ocl::Buffer<float> depth_raw_m;
+    std::array<ocl::Buffer<float>, 3> depth;
+    std::array<ocl::Buffer<vd_float4>, 3> vmap;
+    std::array<ocl::Buffer<vd_float4>, 3> nmap;
+    std::vector<uint32_t> rgba_host;
+  };
+  // Uploads and filters `frame` into *out through ctx and ops (either queue); waits for it.
+  Status Preprocess(ocl::Context& ctx, DeviceOps& ops, const RgbdFrame& frame, FrameMaps* out) const;
+  // maps_ for `frame`: the prefetched maps when Prefetch built them for this frame, else built now.
+  Status TakeMaps(const RgbdFrame& frame);
+  // Waits for the prefetches in flight and drops them.
+  void DropPrefetch();
   Status Track(FrameResult* result);
   Status ExtractMesh(FrameResult* result);
   Status ExtractTracked(FrameResult* result);
@@ -260,6 +291,10 @@ class Engine {
   EngineParams params_;
   std::unique_ptr<ocl::Context> ctx_;
   DeviceOps ops_;
+  // The second queue and its operations for Prefetch's preprocessing (null: none, e.g. a failed
+  // start; Process then preprocesses every frame itself).
+  std::unique_ptr<ocl::Context> prep_ctx_;
+  std::unique_ptr<DeviceOps> prep_ops_;
   bool initialised_ = false;
   int64_t frames_fused_ = 0;
   // Frames since FactorRigidMotion last measured the field's rigid part (it does every
@@ -321,18 +356,33 @@ class Engine {
   Eigen::Matrix4d model_pose_ = Eigen::Matrix4d::Identity();
   VdCamera cam_{};
   // Per-frame input and pyramid; sized on the first frame and whenever the size changes.
-  ocl::Buffer<uint16_t> raw_depth_;
-  ocl::Buffer<uint32_t> rgba_;
-  ocl::Buffer<float> depth_raw_m_;
-  std::array<ocl::Buffer<float>, 3> depth_;
-  std::array<ocl::Buffer<vd_float4>, 3> vmap_;
-  std::array<ocl::Buffer<vd_float4>, 3> nmap_;
-  ocl::Buffer<float> scratch_;
-  std::vector<uint32_t> rgba_host_;
+  FrameMaps maps_;
   // Mesh download scratch (positions, grid positions, normals, colours).
   std::vector<vd_float4> host_pos_, host_grid_, host_nrm_;
   std::vector<uint32_t> host_col_;
-  int valid_pixels_ = 0;
+  // Prefetched frames by sequence number (at most kMaxPrefetched, the oldest giving way: the next
+  // frame, and those a caller offers before it takes that one), each built on its own thread;
+  // Prefetch runs on the caller's thread (the node's receive thread, the offline reader, the
+  // bench) beside Process. Finished maps go back to spare_maps_ so their buffers are reused.
+  // The device work starts only while Process is solving (the window, see OpenPrefetchWindow):
+  // started beside the previous frame's matching and tracking it slowed them by as much as it
+  // saved.
+  struct Prefetched {
+    // On the heap: the thread building it keeps a pointer while the entry moves.
+    std::unique_ptr<RgbdFrame> frame;
+    std::unique_ptr<FrameMaps> maps;
+    std::future<Status> done;
+  };
+  static constexpr size_t kMaxPrefetched = 3;
+  std::mutex prep_mu_;
+  std::map<int64_t, Prefetched> prefetched_;
+  std::vector<std::unique_ptr<FrameMaps>> spare_maps_;
+  bool prep_window_ = false;
+  // Starts p's preprocessing on its own thread (prep_mu_ held).
+  void LaunchPrefetch(Prefetched* p);
+  // While open (Process's solve and fusion), prefetched frames start at once; opening starts those
+  // that waited.
+  void SetPrefetchWindow(bool open);
 };
 
 // The sparse volume's pool use of a frame for status lines: "bricks U of P (x %)", and when the

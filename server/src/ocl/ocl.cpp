@@ -283,6 +283,20 @@ StatusOr<std::unique_ptr<Context>> Context::Create(const std::string& spec) {
   return ctx;
 }
 
+StatusOr<std::unique_ptr<Context>> Context::CreateSibling() const {
+  std::unique_ptr<Context> s(new Context());
+  s->device_ = device_;
+  s->lanes_ = lanes_;
+  cl_int err = CL_SUCCESS;
+  s->queue_ = clCreateCommandQueue(context_, device_.id, 0, &err);
+  if (err != CL_SUCCESS) return ClError(err, "clCreateCommandQueue", __FILE__, __LINE__);
+  VD_CL_CHECK(clRetainContext(context_));
+  s->context_ = context_;
+  VD_CL_CHECK(clRetainProgram(program_));
+  s->program_ = program_;
+  return s;
+}
+
 Context::~Context() {
   if (!profile_.empty()) {
     std::vector<std::pair<double, std::string>> rows;

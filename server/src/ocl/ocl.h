@@ -104,6 +104,10 @@ class Context {
   // device_spec: "" (first GPU, else first CPU device), an index into ListDevices(), or a
   // case-insensitive substring of the platform or device name.
   static StatusOr<std::unique_ptr<Context>> Create(const std::string& device_spec);
+  // A second in-order queue on the same device, context and program (its own kernel objects), so
+  // another host thread can run work beside this one's; buffers of either work in both. Its
+  // allocations count in its own totals. This context must outlive it.
+  StatusOr<std::unique_ptr<Context>> CreateSibling() const;
   ~Context();
   Context(const Context&) = delete;
   Context& operator=(const Context&) = delete;
