@@ -49,38 +49,23 @@ __kernel void vd_active_dilate(__global const uchar* surface, __global const uin
   row_count[yz] = n;
 }
 
-/* Writes the compact list (grid indices in row-major order) and the dense grid -> compact map. */
+/* Writes the compact list (grid indices in row-major order) and the dense grid -> compact map; with
+ * members_only, where compact already holds -1 at every non-member (the old members cleared by
+ * vd_active_unmark), only the members are written and rows without any are skipped. */
 __kernel void vd_active_compact(__global const uchar* member, __global const uint* row_offset, VdVolume vol,
-                                __global int* list, __global int* compact, int vd_items) {
+                                int members_only, __global int* list, __global int* compact, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int yz = get_global_id(0);
   uint out = row_offset[yz];
+  if (members_only && row_offset[yz + 1] == out) return;
   for (int x = 0; x < vol.dim_x; ++x) {
     int i = yz * vol.dim_x + x;
     if (member[i]) {
       list[out] = i;
       compact[i] = (int)out;
       ++out;
-    } else {
+    } else if (!members_only) {
       compact[i] = -1;
-    }
-  }
-}
-
-/* The same when compact already holds -1 at every non-member (the old members cleared by
- * vd_active_unmark): only the members are written, and rows without any are skipped. */
-__kernel void vd_active_compact_members(__global const uchar* member, __global const uint* row_offset, VdVolume vol,
-                                        __global int* list, __global int* compact, int vd_items) {
-  if ((int)get_global_id(0) >= vd_items) return;
-  int yz = get_global_id(0);
-  uint out = row_offset[yz];
-  if (row_offset[yz + 1] == out) return;
-  for (int x = 0; x < vol.dim_x; ++x) {
-    int i = yz * vol.dim_x + x;
-    if (member[i]) {
-      list[out] = i;
-      compact[i] = (int)out;
-      ++out;
     }
   }
 }

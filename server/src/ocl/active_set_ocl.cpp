@@ -36,7 +36,7 @@ Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(
-      ocl::kActiveCompactMembers(*ctx_, rows, active_member_, active_row_offset_, v.vol, out->list, out->compact));
+      ocl::kActiveCompact(*ctx_, rows, active_member_, active_row_offset_, v.vol, 1, out->list, out->compact));
   VD_RETURN_IF_ERROR(ocl::kActiveNeighbours(*ctx_, out->count, out->list, out->compact, v.vol, out->neighbours));
   out->kept = v.vol;
   return Status::Ok();
@@ -47,7 +47,7 @@ namespace ocl {
 Status CompactActiveSet(Context& ctx, const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, VdVolume vol,
                         DeviceActiveSet* out) {
   const size_t rows = size_t(vol.dim_y) * vol.dim_z;
-  VD_RETURN_IF_ERROR(kActiveCompact(ctx, rows, member, row_offset, vol, out->list, out->compact));
+  VD_RETURN_IF_ERROR(kActiveCompact(ctx, rows, member, row_offset, vol, 0, out->list, out->compact));
   return kActiveNeighbours(ctx, out->count, out->list, out->compact, vol, out->neighbours);
 }
 

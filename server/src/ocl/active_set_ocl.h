@@ -23,11 +23,8 @@ inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<uint32
                              Buffer<uint8_t>& member, Buffer<uint32_t>& row_count)> kActiveDilate{"vd_active_dilate"};
 // One item per grid row.
 inline constexpr Kernel<void(const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, VdVolume vol,
-                             Buffer<int32_t>& list, Buffer<int32_t>& compact)> kActiveCompact{"vd_active_compact"};
-// One item per grid row.
-inline constexpr Kernel<void(const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, VdVolume vol,
-                             Buffer<int32_t>& list, Buffer<int32_t>& compact)>
-    kActiveCompactMembers{"vd_active_compact_members"};
+                             int members_only, Buffer<int32_t>& list, Buffer<int32_t>& compact)>
+    kActiveCompact{"vd_active_compact"};
 // One item per member of the previous active set.
 inline constexpr Kernel<void(const Buffer<int32_t>& list, Buffer<int32_t>& compact)> kActiveUnmark{"vd_active_unmark"};
 // One item per active point.
