@@ -61,16 +61,17 @@ Eigen::Vector3d Centroid(const TriangleMesh& m) {
 }
 
 // Two runs of the same frames agree to the engine's run-to-run noise (its device reductions are not
-// bit-reproducible: up to 2e-5 in the pose, 0.03 mm in the centroid), below what a frame's maps
-// taken for another frame's would move: the tube bends by 2.5 degrees a frame, its live surface's
-// centroid by more than 0.3 mm (ConsecutiveFramesMoveFarMoreThanTheTolerance).
+// bit-reproducible: up to 2e-5 in the pose and 0.03 mm in the centroid on a quiet machine, 0.14 mm
+// beside another test), below what a frame's maps taken for another frame's would move: the tube's
+// live surface moves 0.9-2 mm a frame (ConsecutiveFramesMoveFarMoreThanTheTolerance), and a mutant
+// that took another waiting frame's maps was off by 0.8-1.4 mm.
 void ExpectSame(const Results& a, const Results& b) {
   ASSERT_EQ(a.poses.size(), b.poses.size());
   for (size_t i = 0; i < a.poses.size(); ++i) {
-    EXPECT_LT((a.poses[i] - b.poses[i]).cwiseAbs().maxCoeff(), 1e-4) << "frame " << i;
+    EXPECT_LT((a.poses[i] - b.poses[i]).cwiseAbs().maxCoeff(), 3e-4) << "frame " << i;
     const double na = double(a.meshes[i].num_vertices()), nb = double(b.meshes[i].num_vertices());
     EXPECT_NEAR(na, nb, 0.002 * na) << "frame " << i;
-    EXPECT_LT((Centroid(a.meshes[i]) - Centroid(b.meshes[i])).norm(), 1e-4) << "frame " << i;
+    EXPECT_LT((Centroid(a.meshes[i]) - Centroid(b.meshes[i])).norm(), 3e-4) << "frame " << i;
   }
 }
 
@@ -86,7 +87,7 @@ TEST(PrefetchEngineTest, ConsecutiveFramesMoveFarMoreThanTheTolerance) {
   const Results r = Drive(**scene, "off", order, std::vector<std::vector<int>>(order.size()));
   ASSERT_EQ(r.meshes.size(), order.size());
   for (size_t i = 5; i + 1 < r.meshes.size(); ++i)
-    EXPECT_GT((Centroid(r.meshes[i + 1]) - Centroid(r.meshes[i])).norm(), 3e-4) << "frames " << i << ", " << i + 1;
+    EXPECT_GT((Centroid(r.meshes[i + 1]) - Centroid(r.meshes[i])).norm(), 6e-4) << "frames " << i << ", " << i + 1;
 }
 
 TEST(PrefetchEngineTest, PrefetchedSkippedAndDroppedFramesGiveTheSameResults) {
@@ -141,7 +142,7 @@ TEST(PrefetchEngineTest, AFrameOfAnotherSizeWithTheSameNumberIsPreprocessedAgain
   ASSERT_TRUE(want.ok());
   EXPECT_NEAR(double(r->live_mesh.num_vertices()), double(want->live_mesh.num_vertices()),
               0.002 * double(want->live_mesh.num_vertices()));
-  EXPECT_LT((Centroid(r->live_mesh) - Centroid(want->live_mesh)).norm(), 1e-4);
+  EXPECT_LT((Centroid(r->live_mesh) - Centroid(want->live_mesh)).norm(), 3e-4);
   EXPECT_GT(r->live_mesh.num_vertices(), 1000u);
 }
 
