@@ -233,7 +233,9 @@ class Engine {
   const std::vector<SparseMatch>& last_matches() const { return matches_; }
   // Download of the deformation field positions (tests).
   Status DownloadDeformation(std::vector<vd_float4>* def_pos);
-  size_t device_peak_bytes() const { return ctx_->peak_bytes(); }
+  // Peak OpenCL buffer bytes, the prefetch queue's counted beside the main one's (an upper bound:
+  // the two peaks may fall at different times).
+  size_t device_peak_bytes() const { return ctx_->peak_bytes() + (prep_ctx_ ? prep_ctx_->peak_bytes() : 0); }
   // Downloads the grid (for snapshots and tests).
   Status DownloadVolume(std::vector<float>* tsdf, std::vector<float>* weight, std::vector<uint32_t>* color);
 
