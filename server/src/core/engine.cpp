@@ -264,6 +264,7 @@ void Engine::Prefetch(const RgbdFrame& next) {
 void Engine::LaunchPrefetch(Prefetched* p) {
   p->done = std::async(std::launch::async, [this, maps = p->maps.get(), frame = p->frame.get()]() {
     NameThisThread("vd-prep");
+    std::lock_guard<std::mutex> one_at_a_time(prep_run_mu_);
     return Preprocess(*prep_ctx_, *prep_ops_, *frame, maps);
   });
 }

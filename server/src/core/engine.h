@@ -380,6 +380,9 @@ class Engine {
   std::map<int64_t, Prefetched> prefetched_;
   std::vector<std::unique_ptr<FrameMaps>> spare_maps_;
   bool prep_window_ = false;
+  // Held by each prefetch thread while it runs: the second queue's kernel objects and DeviceOps
+  // scratch take one frame at a time.
+  std::mutex prep_run_mu_;
   // Starts p's preprocessing on its own thread (prep_mu_ held).
   void LaunchPrefetch(Prefetched* p);
   // While open (Process's solve and fusion), prefetched frames start at once; opening starts those
