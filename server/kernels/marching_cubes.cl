@@ -1,6 +1,11 @@
 #include "shared/marching_cubes.h"
 #include "shared/tsdf.h"
 
+/* vd_mc_classify walks a row by bricks and flags its cells by chunks: the two widths are one. */
+#if VD_MC_CHUNK != VD_BRICK
+#error "VD_MC_CHUNK must equal VD_BRICK"
+#endif
+
 /* All marching-cubes kernels run one work item per grid row (fixed y, z) looping over x. Offsets
  * within a row are running sums in that loop, so only the per-row totals need a device scan. */
 

@@ -189,7 +189,6 @@ TEST_F(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
   ocl::Context* ctx = ctx_;
   DeviceOps& ops = *ops_;
   test::FusedBricks& f = f_;
-  DeviceMesh& mesh = mesh_;
   DeviceActiveSet active;
   ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
   const size_t m = active.count, n = size_t(f.counts.used) * VD_BRICK_VOXELS;

@@ -30,16 +30,20 @@ Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
                                          active_surface_, active_row_surface_));
   VD_RETURN_IF_ERROR(
       ocl::kActiveDilate(*ctx_, rows, active_surface_, active_row_surface_, v.vol, active_member_, active_row_count_));
-  uint32_t total = 0;
-  VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
-  out->count = total;
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(SizeActiveSet(rows, out));
   VD_RETURN_IF_ERROR(
       ocl::kActiveCompact(*ctx_, rows, active_member_, active_row_offset_, v.vol, 1, out->list, out->compact));
   VD_RETURN_IF_ERROR(ocl::kActiveNeighbours(*ctx_, out->count, out->list, out->compact, v.vol, out->neighbours));
   out->kept = v.vol;
   return Status::Ok();
+}
+
+Status DeviceOps::SizeActiveSet(size_t rows, DeviceActiveSet* out) {
+  uint32_t total = 0;
+  VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
+  out->count = total;
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
+  return ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1));
 }
 
 namespace ocl {

@@ -159,6 +159,9 @@ class DeviceOps {
   // After the classification and mask passes: the scans, the mesh's counts and buffers; whether it
   // has anything to emit.
   StatusOr<bool> SizeMesh(size_t rows, DeviceMesh* mesh);
+  // Both active-set builds: scans the per-row member counts into active_row_offset_, sets
+  // out->count and reserves the list and the neighbour table for it.
+  Status SizeActiveSet(size_t rows, DeviceActiveSet* out);
   ocl::Context* ctx_;
   ocl::Buffer<int8_t> mc_tri_table_;
   ocl::Buffer<uint8_t> mc_tri_counts_;

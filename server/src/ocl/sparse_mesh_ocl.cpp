@@ -48,14 +48,10 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, nbr, active_surface_));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveDilate(*ctx_, rows, active_surface_, nbr, active_member_, active_row_count_));
-  uint32_t total = 0;
-  VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
-  out->count = total;
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(SizeActiveSet(rows, out));
   VD_RETURN_IF_ERROR(
       ocl::kSparseActiveCompact(*ctx_, rows, active_member_, active_row_offset_, out->list, out->compact));
-  return ocl::kSparseActiveNeighbours(*ctx_, total, out->list, out->compact, nbr, out->neighbours);
+  return ocl::kSparseActiveNeighbours(*ctx_, out->count, out->list, out->compact, nbr, out->neighbours);
 }
 
 StatusOr<uint32_t> DeviceOps::AllocateActiveRing(ocl::BrickTable& table) {
