@@ -48,3 +48,20 @@ __kernel void vd_level_prolongate_kernel(__global const int* list_f, VdVolume fi
   int k = get_global_id(0);
   x_f[k] = x_f[k] + vd_level_prolongate(k, list_f, fine, s, compact_c, coarse, x_c, x0_c);
 }
+
+/* One work item per coarse active point, as the first corner of a cell. */
+__kernel void vd_level_moments_kernel(__global const int* list_c, VdVolume coarse, int s, __global const int* compact_f,
+                                      VdVolume fine, __global const VdCorrespondence* cons,
+                                      __global const uint* cell_start, __global const float4* x_f,
+                                      __global float* moments_c, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_level_moments(get_global_id(0), list_c, coarse, s, compact_f, fine, cons, cell_start, x_f, moments_c);
+}
+
+/* One work item per coarse active point. */
+__kernel void vd_btb_shift_rhs_kernel(__global const float* blocks, __global const int* nbr, __global const float4* x0,
+                                      __global float4* data_rhs, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int k = get_global_id(0);
+  data_rhs[k] = vd_btb_shift_rhs(k, blocks, nbr, x0, data_rhs[k]);
+}

@@ -98,13 +98,13 @@ __kernel void vd_cell_moments_kernel(__global const int* list, VdVolume vol, __g
 
 __kernel void vd_btb_assemble_kernel(__global const int* list, __global const int* compact, VdVolume vol,
                                      __global const int* neighbours, __global const float* edge_w,
-                                     __global const uint* cell_start, __global const float* moments, VdSolverWeights w,
-                                     __global float* blocks, __global int* nbr, __global float4* data_rhs,
-                                     __global VdMat3* diag_inv, int vd_items) {
+                                     __global const float* moments, VdSolverWeights w, __global float* blocks,
+                                     __global int* nbr, __global float4* data_rhs, __global VdMat3* diag_inv,
+                                     int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   VdMat3 inv;
-  data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, cell_start, moments, w, blocks, nbr, &inv);
+  data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, moments, w, blocks, nbr, &inv);
   diag_inv[k] = inv;
 }
 

@@ -10,7 +10,9 @@
 
 #include "core/hierarchy.h"
 #include "cpu_ref/cpu_ref.h"
+#include "cpu_ref/solver_ref.h"
 #include "ocl/hierarchy_ocl.h"
+#include "ocl/solver_ocl.h"
 #include "sphere_volume.h"
 #include "test_scenes.h"
 
@@ -218,6 +220,151 @@ TEST(HierarchyParityTest, TranslatedFieldIsExact) {
     ASSERT_NEAR(out[k].x - x_f[k].x, 0.002f, 1e-6f);
     ASSERT_NEAR(out[k].y - x_f[k].y, 0.003f, 1e-6f);
     ASSERT_NEAR(out[k].z - x_f[k].z, -0.001f, 1e-6f);
+  }
+}
+
+// Constraints sorted by the compact index of their cell's first corner (the fine solver's
+// counting sort, order within a cell aside), and the cells' ranges (m + 1 entries).
+void SortByCell(const std::vector<VdCorrespondence>& raw, const std::vector<int32_t>& compact, VdVolume vol, size_t m,
+                std::vector<VdCorrespondence>* sorted, std::vector<vd_uint>* cell_start) {
+  std::vector<std::vector<VdCorrespondence>> by_cell(m);
+  for (const auto& c : raw) {
+    const int kc = vd_constraint_cell(c, compact.data(), vol);
+    if (kc >= 0) by_cell[kc].push_back(c);
+  }
+  sorted->clear();
+  cell_start->assign(m + 1, 0u);
+  for (size_t k = 0; k < m; ++k) {
+    (*cell_start)[k + 1] = (*cell_start)[k] + vd_uint(by_cell[k].size());
+    sorted->insert(sorted->end(), by_cell[k].begin(), by_cell[k].end());
+  }
+}
+
+struct CoarseSystem {
+  std::vector<float> blocks;
+  std::vector<int> nbr;
+  std::vector<vd_float4> rhs;
+  std::vector<VdMat3> inv;
+};
+
+CoarseSystem Assemble(const cpu::ActiveSet& lvl, VdVolume cv, const std::vector<float>& moments, VdSolverWeights w) {
+  const int n = int(lvl.list.size());
+  CoarseSystem sys;
+  sys.blocks.resize(size_t(VD_BTB_FLOATS) * n);
+  sys.nbr.resize(size_t(VD_BTB_BLOCKS) * n);
+  sys.rhs.resize(n);
+  sys.inv.resize(n);
+  const std::vector<float> ones(6 * size_t(n), 1.f);
+  cpu::BtbAssemble(lvl.list.data(), lvl.compact.data(), cv, lvl.neighbours.data(), ones.data(), moments.data(), w, n,
+                   sys.blocks.data(), sys.nbr.data(), sys.rhs.data(), sys.inv.data());
+  return sys;
+}
+
+// A coarse level's system gathered from the fine constraints in place (vd_level_moments, then the
+// x0 part of the right-hand side from the blocks) on the device against the CPU, and against the
+// system built the long way: every constraint re-expressed on the level (vd_level_constraint),
+// sorted by coarse cell, its moments taken and assembled. The two are the same sums.
+TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpressedConstraints) {
+  VD_REQUIRE_OCL(ctx);
+  const Fixture f = MakeSphere();
+  const size_t m = f.fine.list.size();
+  std::vector<vd_float4> x_f(m), rot_f(m, VD_F4(0.f, 0.f, 0.f, 1.f));
+  for (size_t k = 0; k < m; ++k) {
+    const vd_float4 r = Rest(f.vol, f.fine.list[k]);
+    x_f[k] = r + VD_F4(0.01f * std::sin(9.f * r.y), 0.006f * std::cos(7.f * r.x), 0.004f * std::sin(5.f * r.z), 0.f);
+  }
+  // Three constraints per marching-cubes vertex (two nudged within its cell), weights 0.3-0.7,
+  // every seventh unusable (weight 0), targets off the surface along the normal.
+  std::vector<VdCorrespondence> raw;
+  for (size_t i = 0; i < f.mesh.positions_grid.size(); ++i)
+    for (int r = 0; r < 3; ++r) {
+      VdCorrespondence c;
+      const vd_float4 g = f.mesh.positions_grid[i];
+      const float cx = std::floor(g.x), cy = std::floor(g.y), cz = std::floor(g.z), sh = 0.37f * float(r);
+      c.canonical =
+          VD_F4(cx + std::fmod(g.x - cx + sh, 1.f), cy + std::fmod(g.y - cy + 0.5f * sh, 1.f),
+                cz + std::fmod(g.z - cz + 0.25f * sh, 1.f), raw.size() % 7 == 0 ? 0.f : 0.3f + 0.1f * float(i % 5));
+      c.normal = f.mesh.normals[i];
+      c.normal.w = 0.f;
+      c.target = VD_F4(f.vol.origin.x + 0.01f * g.x, f.vol.origin.y + 0.01f * g.y, f.vol.origin.z + 0.01f * g.z, 0.f) +
+                 c.normal * (0.004f + 0.002f * std::sin(float(i)));
+      raw.push_back(c);
+    }
+  std::vector<VdCorrespondence> cons;
+  std::vector<vd_uint> cell_start;
+  SortByCell(raw, f.fine.compact, f.vol, m, &cons, &cell_start);
+  ASSERT_GT(cons.size(), 3000u);
+  VdSolverWeights w{};
+  w.w_dense = 1.3f;
+  w.w_reg = 2.f;
+  w.damping = 2e-4f;
+
+  auto d_compact_f = ToDevice(ctx, f.fine.compact);
+  auto d_cons = ToDevice(ctx, cons);
+  auto d_start = ToDevice(ctx, cell_start);
+  auto d_x_f = ToDevice(ctx, x_f);
+  for (int s : {2, 4}) {
+    const VdVolume cv = LevelVolume(f.vol, s);
+    const cpu::ActiveSet lvl = cpu::BuildLevel(f.fine.list, f.vol, s, cv);
+    const int n = int(lvl.list.size());
+    std::vector<vd_float4> x0(n), rot0(n);
+    cpu::LevelRestrict(lvl, cv, s, f.fine.compact.data(), f.vol, x_f.data(), rot_f.data(), x0.data(), rot0.data());
+
+    // Device against CPU: the moments, then the shifted right-hand side.
+    auto d_list_c = ToDevice(ctx, lvl.list);
+    auto d_moments = ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * n);
+    ASSERT_TRUE(d_moments.ok());
+    ASSERT_TRUE(
+        ocl::LevelMoments(*ctx, n, d_list_c, cv, s, d_compact_f, f.vol, d_cons, d_start, d_x_f, *d_moments).ok());
+    std::vector<float> moments(size_t(VD_CELL_MOMENT_FLOATS) * n, -1.f);
+    cpu::LevelMoments(lvl.list.data(), cv, s, f.fine.compact.data(), f.vol, cons.data(), cell_start.data(), x_f.data(),
+                      n, moments.data());
+    EXPECT_TRUE(AllClose(FromDevice(ctx, *d_moments, moments.size()), moments, 1e-6f, 1e-5f)) << "s = " << s;
+    CoarseSystem got = Assemble(lvl, cv, moments, w);
+    auto d_blocks = ToDevice(ctx, got.blocks);
+    auto d_nbr = ToDevice(ctx, got.nbr);
+    auto d_x0 = ToDevice(ctx, x0);
+    auto d_rhs = ToDevice(ctx, got.rhs);
+    ASSERT_TRUE(ocl::ShiftRhs(*ctx, n, d_blocks, d_nbr, d_x0, d_rhs).ok());
+    cpu::ShiftRhs(got.blocks.data(), got.nbr.data(), x0.data(), n, got.rhs.data());
+    EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_rhs, n)), Flatten(got.rhs), 1e-6f, 1e-5f)) << "s = " << s;
+
+    // The long way: re-expressed, sorted by coarse cell, moments, assembled.
+    std::vector<VdCorrespondence> cc(cons.size()), cc_sorted;
+    cpu::LevelConstraints(cons.data(), int(cons.size()), f.fine.compact.data(), f.vol, x_f.data(), s,
+                          lvl.compact.data(), cv, x0.data(), cc.data());
+    std::vector<vd_uint> cc_start;
+    SortByCell(cc, lvl.compact, cv, n, &cc_sorted, &cc_start);
+    ASSERT_EQ(cc_sorted.size(), cons.size()) << "every fine constraint has its coarse corners";
+    std::vector<float> want_moments(size_t(VD_CELL_MOMENT_FLOATS) * n, -1.f);
+    cpu::CellMoments(lvl.list.data(), cv, cc_sorted.data(), cc_start.data(), n, want_moments.data());
+    const CoarseSystem want = Assemble(lvl, cv, want_moments, w);
+    EXPECT_EQ(got.nbr, want.nbr);
+    double largest_block = 0, worst_block = 0, largest_rhs = 0, worst_rhs = 0, worst_inv = 0;
+    for (size_t i = 0; i < want.blocks.size(); ++i) {
+      largest_block = std::max(largest_block, double(std::abs(want.blocks[i])));
+      worst_block = std::max(worst_block, double(std::abs(got.blocks[i] - want.blocks[i])));
+    }
+    for (int k = 0; k < n; ++k) {
+      const float g[3] = {got.rhs[k].x, got.rhs[k].y, got.rhs[k].z},
+                  h[3] = {want.rhs[k].x, want.rhs[k].y, want.rhs[k].z};
+      for (int a = 0; a < 3; ++a) {
+        largest_rhs = std::max(largest_rhs, double(std::abs(h[a])));
+        worst_rhs = std::max(worst_rhs, double(std::abs(g[a] - h[a])));
+      }
+      float scale = 0.f;
+      for (int a = 0; a < 9; ++a) scale = std::max(scale, std::abs(want.inv[k].m[a]));
+      for (int a = 0; a < 9; ++a)
+        worst_inv = std::max(worst_inv, double(std::abs(got.inv[k].m[a] - want.inv[k].m[a]) / scale));
+    }
+    std::printf(
+        "s = %d: %d points, %zu constraints; worst block error %.3g of %.3g, rhs %.3g of %.3g, relative "
+        "inverse diagonal %.3g\n",
+        s, n, cons.size(), worst_block, largest_block, worst_rhs, largest_rhs, worst_inv);
+    EXPECT_GT(largest_rhs, 0.0);
+    EXPECT_LT(worst_block, 1e-5 * largest_block) << "s = " << s;
+    EXPECT_LT(worst_rhs, 1e-4 * largest_rhs) << "s = " << s;
+    EXPECT_LT(worst_inv, 1e-4) << "s = " << s;
   }
 }
 

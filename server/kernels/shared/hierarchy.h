@@ -120,4 +120,60 @@ VD_INLINE vd_float4 vd_level_prolongate(int k, VD_GLOBAL const int* list_f, VdVo
   return u;
 }
 
+/* A coarse system from the fine level's sorted constraints (docs/NONRIGID.md "Hierarchy"),
+ * without re-expressing, re-sorting or storing them per level: a coarse cell's constraints are
+ * those of the s^3 fine cells inside it, each a contiguous range of the fine order. On a coarse
+ * level a constraint's right-hand side is w n . (p~ - p_cur + sum alpha x0) (vd_level_constraint):
+ * its first part, the residual at the fine state x_f, is accumulated here; the x0 part is
+ * (B^T B x0)_k, added after the assembly (vd_btb_shift_rhs). */
+
+/* The moments of the coarse cell whose first corner is active point K (VD_CELL_MOMENT_FLOATS at
+ * moments_c + K * that): the 27 B^T B moments, the residuals' right-hand sides and the count. */
+VD_INLINE void vd_level_moments(int K, VD_GLOBAL const int* list_c, VdVolume coarse, int s,
+                                VD_GLOBAL const int* compact_f, VdVolume fine, VD_GLOBAL const VdCorrespondence* cons,
+                                VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const vd_float4* x_f,
+                                VD_GLOBAL float* moments_c) {
+  int X, Y, Z;
+  vd_grid_coords(list_c[K], coarse, &X, &Y, &Z);
+  float acc[VD_CELL_COUNT_SLOT];
+  for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) acc[i] = 0.0f;
+  vd_uint count = 0u;
+  float inv = 1.0f / (float)s;
+  for (int d = 0; d < s * s * s; ++d) {
+    int x = s * X + d % s, y = s * Y + (d / s) % s, z = s * Z + d / (s * s);
+    if (x >= fine.dim_x - 1 || y >= fine.dim_y - 1 || z >= fine.dim_z - 1) continue;
+    int kc = compact_f[vd_grid_index(fine, x, y, z)];
+    if (kc < 0) continue;
+    vd_uint c0 = cell_start[kc], c1 = cell_start[kc + 1];
+    if (c0 == c1) continue;
+    count += c1 - c0;
+    /* A fine cell holds constraints only when all 8 corners are active (vd_cell_corners). */
+    vd_float4 xc[8];
+    for (int o = 0; o < 8; ++o)
+      xc[o] = x_f[compact_f[vd_grid_index(fine, x + (o & 1), y + ((o >> 1) & 1), z + (o >> 2))]];
+    for (vd_uint c = c0; c < c1; ++c) {
+      VdCorrespondence cc = cons[c];
+      float fx = cc.canonical.x - (float)x, fy = cc.canonical.y - (float)y, fz = cc.canonical.z - (float)z;
+      vd_float4 p = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+      for (int o = 0; o < 8; ++o)
+        p = p + xc[o] * ((o & 1 ? fx : 1.0f - fx) * (o & 2 ? fy : 1.0f - fy) * (o & 4 ? fz : 1.0f - fz));
+      /* The coarse fractions as vd_level_constraint and vd_cell_corners form them. */
+      float gx = cc.canonical.x * inv - (float)X, gy = cc.canonical.y * inv - (float)Y,
+            gz = cc.canonical.z * inv - (float)Z;
+      vd_moments_add(acc, gx, gy, gz, cc.canonical.w, cc.normal, cc.canonical.w * vd_dot3(cc.normal, cc.target - p));
+    }
+  }
+  VD_GLOBAL float* out = moments_c + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)K;
+  for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) out[i] = acc[i];
+  out[VD_CELL_COUNT_SLOT] = (float)count;
+}
+
+/* The x0 part of coarse point k's right-hand side, (w_d B^T B x0)_k from its assembled blocks. */
+VD_INLINE vd_float4 vd_btb_shift_rhs(int k, VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
+                                     VD_GLOBAL const vd_float4* x0, vd_float4 rhs) {
+  vd_float4 out = rhs + vd_btb_apply(k, blocks, nbr, x0);
+  out.w = 0.0f;
+  return out;
+}
+
 #endif /* VD_HIERARCHY_H */

@@ -173,48 +173,55 @@ VD_INLINE vd_float4 vd_neighbour_edge(int j, float h) {
  *    those moments over the 8 cells the point is a corner of. */
 #define VD_BTB_BLOCKS 27
 #define VD_BTB_FLOATS (6 * VD_BTB_BLOCKS)
-/* Per cell: the 27 symmetric moments, then the 8 corners' right-hand sides (3 floats each). */
-#define VD_CELL_MOMENT_FLOATS (VD_BTB_FLOATS + 24)
+/* Per cell: the 27 symmetric moments, then the 8 corners' right-hand sides (3 floats each), then
+ * the number of constraints (0: the cell has none and the rest is not read). */
+#define VD_CELL_MOMENT_FLOATS (VD_BTB_FLOATS + 25)
+#define VD_CELL_RHS_SLOT VD_BTB_FLOATS
+#define VD_CELL_COUNT_SLOT (VD_BTB_FLOATS + 24)
+
+/* Adds one constraint to a cell's moments (the first VD_CELL_COUNT_SLOT floats): fractions
+ * (fx, fy, fz) in the cell, weight w, normal n and right-hand side value t = w n . p. */
+VD_INLINE void vd_moments_add(float* acc, float fx, float fy, float fz, float w, vd_float4 n, float t) {
+  float gx = 1.0f - fx, gy = 1.0f - fy, gz = 1.0f - fz;
+  float px[3] = {gx * gx, fx * gx, fx * fx};
+  float py[3] = {gy * gy, fy * gy, fy * fy};
+  float pz[3] = {gz * gz, fz * gz, fz * fz};
+  float nn[6] = {w * n.x * n.x, w * n.x * n.y, w * n.x * n.z, w * n.y * n.y, w * n.y * n.z, w * n.z * n.z};
+  VD_UNROLL
+  for (int m = 0; m < 27; ++m) {
+    float p = px[m % 3] * py[(m / 3) % 3] * pz[m / 9];
+    VD_UNROLL
+    for (int e = 0; e < 6; ++e) acc[6 * m + e] += p * nn[e];
+  }
+  float ax[2] = {gx, fx}, ay[2] = {gy, fy}, az[2] = {gz, fz};
+  VD_UNROLL
+  for (int o = 0; o < 8; ++o) {
+    float a = ax[o & 1] * ay[(o >> 1) & 1] * az[o >> 2] * t;
+    acc[VD_CELL_RHS_SLOT + 3 * o + 0] += a * n.x;
+    acc[VD_CELL_RHS_SLOT + 3 * o + 1] += a * n.y;
+    acc[VD_CELL_RHS_SLOT + 3 * o + 2] += a * n.z;
+  }
+}
 
 /* Moments of the constraints of the cell whose first corner is active point kc (rows
- * cell_start[kc] .. cell_start[kc + 1] of the sorted constraints); nothing is written for a cell
- * without constraints (the assembly skips it). */
+ * cell_start[kc] .. cell_start[kc + 1] of the sorted constraints); for a cell without constraints
+ * only its count (0) is written (the assembly skips it). */
 VD_INLINE void vd_cell_moments(int kc, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const VdCorrespondence* cons,
                                VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL float* moments) {
   vd_uint c0 = cell_start[kc], c1 = cell_start[kc + 1];
+  moments[(size_t)VD_CELL_MOMENT_FLOATS * (size_t)kc + VD_CELL_COUNT_SLOT] = (float)(c1 - c0);
   if (c0 == c1) return;
   int x, y, z;
   vd_grid_coords(list[kc], vol, &x, &y, &z);
-  float acc[VD_CELL_MOMENT_FLOATS];
-  for (int i = 0; i < VD_CELL_MOMENT_FLOATS; ++i) acc[i] = 0.0f;
+  float acc[VD_CELL_COUNT_SLOT];
+  for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) acc[i] = 0.0f;
   for (vd_uint c = c0; c < c1; ++c) {
     VdCorrespondence cc = cons[c];
-    float fx = cc.canonical.x - (float)x, fy = cc.canonical.y - (float)y, fz = cc.canonical.z - (float)z;
-    float gx = 1.0f - fx, gy = 1.0f - fy, gz = 1.0f - fz;
-    float px[3] = {gx * gx, fx * gx, fx * fx};
-    float py[3] = {gy * gy, fy * gy, fy * fy};
-    float pz[3] = {gz * gz, fz * gz, fz * fz};
-    float w = cc.canonical.w;
-    vd_float4 n = cc.normal;
-    float nn[6] = {w * n.x * n.x, w * n.x * n.y, w * n.x * n.z, w * n.y * n.y, w * n.y * n.z, w * n.z * n.z};
-    VD_UNROLL
-    for (int m = 0; m < 27; ++m) {
-      float p = px[m % 3] * py[(m / 3) % 3] * pz[m / 9];
-      VD_UNROLL
-      for (int e = 0; e < 6; ++e) acc[6 * m + e] += p * nn[e];
-    }
-    float t = w * vd_dot3(n, cc.target);
-    float ax[2] = {gx, fx}, ay[2] = {gy, fy}, az[2] = {gz, fz};
-    VD_UNROLL
-    for (int o = 0; o < 8; ++o) {
-      float a = ax[o & 1] * ay[(o >> 1) & 1] * az[o >> 2] * t;
-      acc[VD_BTB_FLOATS + 3 * o + 0] += a * n.x;
-      acc[VD_BTB_FLOATS + 3 * o + 1] += a * n.y;
-      acc[VD_BTB_FLOATS + 3 * o + 2] += a * n.z;
-    }
+    vd_moments_add(acc, cc.canonical.x - (float)x, cc.canonical.y - (float)y, cc.canonical.z - (float)z, cc.canonical.w,
+                   cc.normal, cc.canonical.w * vd_dot3(cc.normal, cc.target));
   }
   VD_GLOBAL float* out = moments + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)kc;
-  for (int i = 0; i < VD_CELL_MOMENT_FLOATS; ++i) out[i] = acc[i];
+  for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) out[i] = acc[i];
 }
 
 /* The inverse of a diagonal block (symmetric positive definite), by the adjugate. */
@@ -238,8 +245,8 @@ VD_INLINE VdMat3 vd_mat3_inverse_spd(VdMat3 d) {
  * moments of the (up to 8) cells it is a corner of. */
 VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
                                     VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                    VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* moments,
-                                    VdSolverWeights w, VD_GLOBAL float* blocks, VD_GLOBAL int* nbr, VdMat3* diag_inv) {
+                                    VD_GLOBAL const float* moments, VdSolverWeights w, VD_GLOBAL float* blocks,
+                                    VD_GLOBAL int* nbr, VdMat3* diag_inv) {
   int x, y, z;
   vd_grid_coords(list[k], vol, &x, &y, &z);
   for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
@@ -256,8 +263,9 @@ VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL 
     int cx = x - kx, cy = y - ky, cz = z - kz;
     if (cx < 0 || cy < 0 || cz < 0 || cx > vol.dim_x - 2 || cy > vol.dim_y - 2 || cz > vol.dim_z - 2) continue;
     int kc = compact[vd_grid_index(vol, cx, cy, cz)];
-    if (kc < 0 || cell_start[kc] == cell_start[kc + 1]) continue;
+    if (kc < 0) continue;
     VD_GLOBAL const float* mom = moments + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)kc;
+    if (mom[VD_CELL_COUNT_SLOT] == 0.0f) continue;
     VD_UNROLL
     for (int oj = 0; oj < 8; ++oj) {
       int jx = oj & 1, jy = (oj >> 1) & 1, jz = (oj >> 2) & 1;

@@ -1,5 +1,7 @@
 #include "core/hierarchy.h"
 
+#include <algorithm>
+
 #include "ocl/active_set_ocl.h"
 #include "ocl/hierarchy_ocl.h"
 
@@ -46,6 +48,12 @@ Status HierarchicalSolver::Prepare(const DeviceVolume& v, const DeviceActiveSet&
   return Status::Ok();
 }
 
+Status HierarchicalSolver::LevelMoments(const DeviceVolume& v, Level* L) {
+  const DeviceActiveSet& fine = *fine_active_;
+  return ocl::LevelMoments(ops_->ctx(), L->active.count, L->active.list, L->vol, L->spacing, fine.compact, v.vol,
+                           fine_.constraints(), fine_.cell_start(), fine_.positions(), L->solver.mutable_moments());
+}
+
 StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
                                                   const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n,
                                                   bool energies) {
@@ -61,19 +69,29 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const DeviceVolume& v,
   const size_t nc = fine_.num_constraints();
   const bool coarse = !levels_.empty() && params.coarse_flip_flop_iterations > 0 && nc > 0;
   if (coarse) {
+    // With B^T B cached, each coarse system's moments come straight from the fine constraints
+    // (shared/hierarchy.h); otherwise the constraints are re-expressed on the level and sorted.
+    const bool from_moments = params.cache_btb_coarse;
+    const int top = int(levels_.size()) - 1;
     // Coarsest first; each level restricts the current fine state, so it solves for what the
     // coarser levels left.
-    for (int i = int(levels_.size()) - 1; i >= 0; --i) {
+    for (int i = top; i >= 0; --i) {
       Level& L = *levels_[i];
       if (L.active.count == 0) continue;
       const int s = L.spacing;
       VD_RETURN_IF_ERROR(ctx.Reserve(&L.rot0, std::max<size_t>(L.active.count, 1)));
       VD_RETURN_IF_ERROR(ocl::RestrictState(ctx, L.active.count, L.active.list, L.vol, s, fine_active_->compact, v.vol,
                                             fine_.positions(), fine_.rotations(), L.x0, L.rot0));
-      VD_RETURN_IF_ERROR(ctx.Reserve(&L.cons, std::max<size_t>(nc, 1)));
-      VD_RETURN_IF_ERROR(ocl::RestrictConstraints(ctx, nc, fine_.constraints(), fine_active_->compact, v.vol,
-                                                  fine_.positions(), s, L.active.compact, L.vol, L.x0, L.cons));
-      VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.vol, L.active, L.cons, nc));
+      if (from_moments) {
+        VD_RETURN_IF_ERROR(L.solver.SetupFromMoments(L.vol, L.active, nc));
+        VD_RETURN_IF_ERROR(LevelMoments(v, &L));
+        VD_RETURN_IF_ERROR(L.solver.AssembleFromMoments(L.x0));
+      } else {
+        VD_RETURN_IF_ERROR(ctx.Reserve(&L.cons, std::max<size_t>(nc, 1)));
+        VD_RETURN_IF_ERROR(ocl::RestrictConstraints(ctx, nc, fine_.constraints(), fine_active_->compact, v.vol,
+                                                    fine_.positions(), s, L.active.compact, L.vol, L.x0, L.cons));
+        VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.vol, L.active, L.cons, nc));
+      }
       // Rotations warm-started from the fine ones (the mean of the last frame's around each point)
       // and refined for the restricted state first, then the flip-flop.
       VD_RETURN_IF_ERROR(L.solver.InitState(L.x0, L.rot0));

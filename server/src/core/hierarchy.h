@@ -2,7 +2,9 @@
 // The nested coarse-to-fine solver (VolumeDeform section 7.2; docs/NONRIGID.md "Hierarchy"):
 // coarse levels of 2^l times the voxel spacing are built from the fine active set every frame,
 // solve for an increment of the field with all constraints re-expressed on their grid
-// (shared/hierarchy.h), and jump-start the finer solve by prolongating that increment.
+// (shared/hierarchy.h), and jump-start the finer solve by prolongating that increment. With
+// B^T B cached on the coarse levels (the default) a coarse system's moments are gathered from the
+// fine constraints in place, without re-expressing or re-sorting them per level.
 #include <memory>
 #include <vector>
 
@@ -48,6 +50,8 @@ class HierarchicalSolver {
     DeviceSolver solver;
   };
   Status BuildLevel(const DeviceVolume& v, const DeviceActiveSet& fine, Level* level);
+  // The level's moments from the fine constraints at the current fine state (shared/hierarchy.h).
+  Status LevelMoments(const DeviceVolume& v, Level* level);
 
   DeviceOps* ops_;
   const SolverParams params_;

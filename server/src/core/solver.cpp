@@ -4,6 +4,7 @@
 #include <cmath>
 #include <sstream>
 
+#include "ocl/hierarchy_ocl.h"
 #include "ocl/procrustes_ocl.h"
 #include "ocl/solver_ocl.h"
 #include "vd/common/flags.h"
@@ -148,6 +149,36 @@ Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& acti
   VD_RETURN_IF_ERROR(ocl::ConstraintTargets(ctx, total, cons_, targets_));
   return ocl::DataRhsAndDiagonal(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_,
                                  cell_start_, targets_, Weights(), data_rhs_, diag_inv_);
+}
+
+Status DeviceSolver::SetupFromMoments(const VdVolume& vol, const DeviceActiveSet& active, size_t num_constraints) {
+  if (!cache_btb_) return FailedPrecondition("SetupFromMoments needs the cached B^T B");
+  ocl::Context& ctx = ops_->ctx();
+  vol_ = vol;
+  active_ = &active;
+  m_ = active.count;
+  num_constraints_ = num_constraints;
+  adaptive_ = false;
+  const size_t m = std::max<size_t>(m_, 1);
+  for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &z_, &p_, &q_, &data_rhs_})
+    VD_RETURN_IF_ERROR(ctx.Reserve(b, m));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&diag_inv_, m));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&edge_w_, 6 * m));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&moments_, VD_CELL_MOMENT_FLOATS * m));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * m));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * m));
+  if (m_ == 0) return Status::Ok();
+  VD_RETURN_IF_ERROR(ocl::RestPositions(ctx, m_, active.list, vol_, rest_));
+  return ctx.Fill(edge_w_, 1.f, 6 * m_);
+}
+
+Status DeviceSolver::AssembleFromMoments(const ocl::Buffer<vd_float4>& x0) {
+  if (m_ == 0) return Status::Ok();
+  ocl::Context& ctx = ops_->ctx();
+  const auto& a = *active_;
+  VD_RETURN_IF_ERROR(ocl::AssembleBtb(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, moments_, Weights(),
+                                      btb_, btb_nbr_, data_rhs_, diag_inv_));
+  return ocl::ShiftRhs(ctx, m_, btb_, btb_nbr_, x0, data_rhs_);
 }
 
 StatusOr<double> DeviceSolver::SumPartials(size_t groups) {

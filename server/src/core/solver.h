@@ -77,6 +77,11 @@ class DeviceSolver {
   // the first rotation step) or with the warm-start rotations rot0 (refined).
   Status SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
                           const ocl::Buffer<VdCorrespondence>& constraints, size_t n);
+  // The other way for a coarse level with cached B^T B: no constraints of its own, its moments
+  // filled by the caller from the level below (mutable_moments(), shared/hierarchy.h
+  // vd_level_moments), then assembled with its start x0. num_constraints is reported only.
+  Status SetupFromMoments(const VdVolume& vol, const DeviceActiveSet& active, size_t num_constraints);
+  Status AssembleFromMoments(const ocl::Buffer<vd_float4>& x0);
   Status InitState(const ocl::Buffer<vd_float4>& x0);
   Status InitState(const ocl::Buffer<vd_float4>& x0, const ocl::Buffer<vd_float4>& rot0);
   // Position step: PCG from the current positions; returns the iterations used.
@@ -100,6 +105,11 @@ class DeviceSolver {
   // Constraints sorted by cell (num_constraints() of them).
   const ocl::Buffer<VdCorrespondence>& constraints() const { return cons_; }
   const ocl::Buffer<vd_float4>& rotations() const { return rot_; }
+  // Per-cell moments of the cached B^T B (VD_CELL_MOMENT_FLOATS per active point) and the
+  // constraints' cell ranges (m + 1), as the last Setup left them.
+  const ocl::Buffer<float>& moments() const { return moments_; }
+  ocl::Buffer<float>& mutable_moments() { return moments_; }
+  const ocl::Buffer<uint32_t>& cell_start() const { return cell_start_; }
 
  private:
   StatusOr<double> SumPartials(size_t groups);

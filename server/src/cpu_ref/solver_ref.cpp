@@ -9,12 +9,23 @@ void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, co
 }
 
 void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const float* edge_w,
-                 const vd_uint* cell_start, const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr,
-                 vd_float4* data_rhs, VdMat3* diag_inv) {
+                 const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr, vd_float4* data_rhs,
+                 VdMat3* diag_inv) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k)
-    data_rhs[k] =
-        vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, cell_start, moments, w, blocks, nbr, &diag_inv[k]);
+    data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, moments, w, blocks, nbr, &diag_inv[k]);
+}
+
+void LevelMoments(const int* list_c, VdVolume coarse, int s, const int* compact_f, VdVolume fine,
+                  const VdCorrespondence* cons, const vd_uint* cell_start, const vd_float4* x_f, int n,
+                  float* moments_c) {
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < n; ++k) vd_level_moments(k, list_c, coarse, s, compact_f, fine, cons, cell_start, x_f, moments_c);
+}
+
+void ShiftRhs(const float* blocks, const int* nbr, const vd_float4* x0, int n, vd_float4* data_rhs) {
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < n; ++k) data_rhs[k] = vd_btb_shift_rhs(k, blocks, nbr, x0, data_rhs[k]);
 }
 
 void ApplySystemCached(const int* neighbours, const float* edge_w, const float* blocks, const int* nbr,

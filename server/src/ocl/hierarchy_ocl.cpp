@@ -25,6 +25,17 @@ Status RestrictConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence
   return kLevelConstraints(ctx, n, cons_f, compact_f, fine, x_f, s, compact_c, coarse, x0_c, cons_c);
 }
 
+Status LevelMoments(Context& ctx, size_t n, const Buffer<int32_t>& list_c, VdVolume coarse, int s,
+                    const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<VdCorrespondence>& cons,
+                    const Buffer<uint32_t>& cell_start, const Buffer<vd_float4>& x_f, Buffer<float>& moments_c) {
+  return kLevelMoments(ctx, n, list_c, coarse, s, compact_f, fine, cons, cell_start, x_f, moments_c);
+}
+
+Status ShiftRhs(Context& ctx, size_t n, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+                const Buffer<vd_float4>& x0, Buffer<vd_float4>& data_rhs) {
+  return kBtbShiftRhs(ctx, n, blocks, nbr, x0, data_rhs);
+}
+
 Status ProlongateIncrement(Context& ctx, size_t n, const Buffer<int32_t>& list_f, VdVolume fine, int s,
                            const Buffer<int32_t>& compact_c, VdVolume coarse, const Buffer<vd_float4>& x_c,
                            const Buffer<vd_float4>& x0_c, Buffer<vd_float4>& x_f) {

@@ -63,8 +63,14 @@ Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffe
                 const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
                 Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
   VD_RETURN_IF_ERROR(kCellMoments(ctx, m, list, vol, cons, cell_start, moments));
-  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, cell_start, moments, w, blocks, nbr, data_rhs,
-                      diag_inv);
+  return AssembleBtb(ctx, m, list, compact, vol, neighbours, edge_w, moments, w, blocks, nbr, data_rhs, diag_inv);
+}
+
+Status AssembleBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
+                   const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<float>& moments,
+                   VdSolverWeights w, Buffer<float>& blocks, Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs,
+                   Buffer<VdMat3>& diag_inv) {
+  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, moments, w, blocks, nbr, data_rhs, diag_inv);
 }
 
 Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,

@@ -50,10 +50,10 @@ inline constexpr Kernel<void(
 inline constexpr Kernel<void(const Buffer<int32_t>& list, VdVolume vol, const Buffer<VdCorrespondence>& cons,
                              const Buffer<uint32_t>& cell_start,
                              Buffer<float>& moments)> kCellMoments{"vd_cell_moments_kernel"};
-inline constexpr Kernel<void(
-    const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol, const Buffer<int32_t>& neighbours,
-    const Buffer<float>& edge_w, const Buffer<uint32_t>& cell_start, const Buffer<float>& moments, VdSolverWeights w,
-    Buffer<float>& blocks, Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv)>
+inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
+                             const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
+                             const Buffer<float>& moments, VdSolverWeights w, Buffer<float>& blocks,
+                             Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv)>
     kBtbAssemble{"vd_btb_assemble_kernel"};
 inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
                              const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
@@ -141,6 +141,12 @@ Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffe
                 const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
                 const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
                 Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv);
+// The same from moments already in place (a coarse level's, built from the level below by
+// vd_level_moments): blocks, neighbour indices, data right-hand side and Jacobi blocks.
+Status AssembleBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
+                   const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<float>& moments,
+                   VdSolverWeights w, Buffer<float>& blocks, Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs,
+                   Buffer<VdMat3>& diag_inv);
 // q = A d from the blocks of BuildBtb.
 Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
                          const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
