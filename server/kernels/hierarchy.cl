@@ -57,11 +57,3 @@ __kernel void vd_level_moments_kernel(__global const int* list_c, VdVolume coars
   if ((int)get_global_id(0) >= vd_items) return;
   vd_level_moments(get_global_id(0), list_c, coarse, s, compact_f, fine, cons, cell_start, x_f, moments_c);
 }
-
-/* One work item per coarse active point. */
-__kernel void vd_btb_shift_rhs_kernel(__global const float* blocks, __global const int* nbr, __global const float4* x0,
-                                      __global float4* data_rhs, int vd_items) {
-  if ((int)get_global_id(0) >= vd_items) return;
-  int k = get_global_id(0);
-  data_rhs[k] = vd_btb_shift_rhs(k, blocks, nbr, x0, data_rhs[k]);
-}

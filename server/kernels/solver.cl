@@ -98,23 +98,21 @@ __kernel void vd_cell_moments_kernel(__global const int* list, VdVolume vol, __g
 
 __kernel void vd_btb_assemble_kernel(__global const int* list, __global const int* compact, VdVolume vol,
                                      __global const int* neighbours, __global const float* edge_w,
-                                     __global const float* moments, VdSolverWeights w, __global float* blocks,
-                                     __global int* nbr, __global float4* data_rhs, __global VdMat3* diag_inv,
-                                     int vd_items) {
+                                     __global const float* moments, VdSolverWeights w, __global const float4* x0,
+                                     int shift, __global float* blocks, __global int* nbr, __global float4* data_rhs,
+                                     __global VdMat3* diag_inv, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   VdMat3 inv;
-  data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, moments, w, blocks, nbr, &inv);
+  data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, moments, w, x0, shift, blocks, nbr, &inv);
   diag_inv[k] = inv;
 }
 
-__kernel void vd_system_apply_cached_kernel(__global const int* neighbours, __global const float* edge_w,
-                                            __global const float* blocks, __global const int* nbr,
-                                            __global const float4* d, VdSolverWeights w, __global float4* q,
-                                            int vd_items) {
+__kernel void vd_system_apply_cached_kernel(__global const float* blocks, __global const int* nbr,
+                                            __global const float4* d, __global float4* q, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
-  q[k] = vd_system_apply_cached(k, neighbours, edge_w, blocks, nbr, d, w);
+  q[k] = vd_system_apply_cached(k, blocks, nbr, d);
 }
 
 /* PCG vector updates. */

@@ -247,7 +247,8 @@ struct CoarseSystem {
   std::vector<VdMat3> inv;
 };
 
-CoarseSystem Assemble(const cpu::ActiveSet& lvl, VdVolume cv, const std::vector<float>& moments, VdSolverWeights w) {
+CoarseSystem Assemble(const cpu::ActiveSet& lvl, VdVolume cv, const std::vector<float>& moments, VdSolverWeights w,
+                      const vd_float4* x0) {
   const int n = int(lvl.list.size());
   CoarseSystem sys;
   sys.blocks.resize(size_t(VD_BTB_FLOATS) * n);
@@ -255,8 +256,8 @@ CoarseSystem Assemble(const cpu::ActiveSet& lvl, VdVolume cv, const std::vector<
   sys.rhs.resize(n);
   sys.inv.resize(n);
   const std::vector<float> ones(6 * size_t(n), 1.f);
-  cpu::BtbAssemble(lvl.list.data(), lvl.compact.data(), cv, lvl.neighbours.data(), ones.data(), moments.data(), w, n,
-                   sys.blocks.data(), sys.nbr.data(), sys.rhs.data(), sys.inv.data());
+  cpu::BtbAssemble(lvl.list.data(), lvl.compact.data(), cv, lvl.neighbours.data(), ones.data(), moments.data(), w, x0,
+                   n, sys.blocks.data(), sys.nbr.data(), sys.rhs.data(), sys.inv.data());
   return sys;
 }
 
@@ -320,14 +321,25 @@ TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpre
     cpu::LevelMoments(lvl.list.data(), cv, s, f.fine.compact.data(), f.vol, cons.data(), cell_start.data(), x_f.data(),
                       n, moments.data());
     EXPECT_TRUE(AllClose(FromDevice(ctx, *d_moments, moments.size()), moments, 1e-6f, 1e-5f)) << "s = " << s;
-    CoarseSystem got = Assemble(lvl, cv, moments, w);
-    auto d_blocks = ToDevice(ctx, got.blocks);
-    auto d_nbr = ToDevice(ctx, got.nbr);
-    auto d_x0 = ToDevice(ctx, x0);
-    auto d_rhs = ToDevice(ctx, got.rhs);
-    ASSERT_TRUE(ocl::ShiftRhs(*ctx, n, d_blocks, d_nbr, d_x0, d_rhs).ok());
-    cpu::ShiftRhs(got.blocks.data(), got.nbr.data(), x0.data(), n, got.rhs.data());
-    EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_rhs, n)), Flatten(got.rhs), 1e-6f, 1e-5f)) << "s = " << s;
+    // The assembly with the x0 shift, on the device against the CPU.
+    const CoarseSystem got = Assemble(lvl, cv, moments, w, x0.data());
+    {
+      auto d_nb = ToDevice(ctx, lvl.neighbours);
+      auto d_compact_c = ToDevice(ctx, lvl.compact);
+      auto d_ew = ToDevice(ctx, std::vector<float>(6 * size_t(n), 1.f));
+      auto d_x0 = ToDevice(ctx, x0);
+      auto d_blocks = ctx->Alloc<float>(size_t(VD_BTB_FLOATS) * n);
+      auto d_nbr = ctx->Alloc<int32_t>(size_t(VD_BTB_BLOCKS) * n);
+      auto d_rhs = ctx->Alloc<vd_float4>(n);
+      auto d_inv = ctx->Alloc<VdMat3>(n);
+      ASSERT_TRUE(d_blocks.ok() && d_nbr.ok() && d_rhs.ok() && d_inv.ok());
+      ASSERT_TRUE(ocl::AssembleBtb(*ctx, n, d_list_c, d_compact_c, cv, d_nb, d_ew, *d_moments, w, d_x0, *d_blocks,
+                                   *d_nbr, *d_rhs, *d_inv)
+                      .ok());
+      EXPECT_EQ(FromDevice(ctx, *d_nbr, got.nbr.size()), got.nbr);
+      EXPECT_TRUE(AllClose(FromDevice(ctx, *d_blocks, got.blocks.size()), got.blocks, 1e-6f, 1e-5f)) << "s = " << s;
+      EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, *d_rhs, n)), Flatten(got.rhs), 1e-6f, 1e-5f)) << "s = " << s;
+    }
 
     // The long way: re-expressed, sorted by coarse cell, moments, assembled.
     std::vector<VdCorrespondence> cc(cons.size()), cc_sorted;
@@ -338,7 +350,7 @@ TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpre
     ASSERT_EQ(cc_sorted.size(), cons.size()) << "every fine constraint has its coarse corners";
     std::vector<float> want_moments(size_t(VD_CELL_MOMENT_FLOATS) * n, -1.f);
     cpu::CellMoments(lvl.list.data(), cv, cc_sorted.data(), cc_start.data(), n, want_moments.data());
-    const CoarseSystem want = Assemble(lvl, cv, want_moments, w);
+    const CoarseSystem want = Assemble(lvl, cv, want_moments, w, nullptr);
     EXPECT_EQ(got.nbr, want.nbr);
     double largest_block = 0, worst_block = 0, largest_rhs = 0, worst_rhs = 0, worst_inv = 0;
     for (size_t i = 0; i < want.blocks.size(); ++i) {

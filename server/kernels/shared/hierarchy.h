@@ -125,7 +125,7 @@ VD_INLINE vd_float4 vd_level_prolongate(int k, VD_GLOBAL const int* list_f, VdVo
  * those of the s^3 fine cells inside it, each a contiguous range of the fine order. On a coarse
  * level a constraint's right-hand side is w n . (p~ - p_cur + sum alpha x0) (vd_level_constraint):
  * its first part, the residual at the fine state x_f, is accumulated here; the x0 part is
- * (B^T B x0)_k, added after the assembly (vd_btb_shift_rhs). */
+ * (B^T B x0)_k, added by the assembly (vd_btb_assemble with shift). */
 
 /* The moments of the coarse cell whose first corner is active point K (VD_CELL_MOMENT_FLOATS at
  * moments_c + K * that): the 27 B^T B moments, the residuals' right-hand sides and the count. */
@@ -166,14 +166,6 @@ VD_INLINE void vd_level_moments(int K, VD_GLOBAL const int* list_c, VdVolume coa
   VD_GLOBAL float* out = moments_c + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)K;
   for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) out[i] = acc[i];
   out[VD_CELL_COUNT_SLOT] = (float)count;
-}
-
-/* The x0 part of coarse point k's right-hand side, (w_d B^T B x0)_k from its assembled blocks. */
-VD_INLINE vd_float4 vd_btb_shift_rhs(int k, VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
-                                     VD_GLOBAL const vd_float4* x0, vd_float4 rhs) {
-  vd_float4 out = rhs + vd_btb_apply(k, blocks, nbr, x0);
-  out.w = 0.0f;
-  return out;
 }
 
 #endif /* VD_HIERARCHY_H */

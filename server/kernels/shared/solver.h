@@ -159,9 +159,9 @@ VD_INLINE vd_float4 vd_neighbour_edge(int j, float h) {
  *   w_d sum_c w_c alpha_ck alpha_cj n_c n_c^T   (j = the point at offset o)
  * over the constraints c in the cells both points are corners of. Each block is symmetric and
  * stored as 6 floats (xx, xy, xz, yy, yz, zz): 162 floats per point, with the 27 compact
- * neighbour indices (-1 outside M) beside them. The product then costs 27 small mat-vecs per point
- * whatever the number of constraints, which matters on the coarse levels where a cell holds
- * thousands of them.
+ * neighbour indices (-1 outside M) beside them; the ARAP Laplacian and the damping are added to
+ * the same blocks. The product then costs 27 small mat-vecs per point whatever the number of
+ * constraints, which matters on the coarse levels where a cell holds thousands of them.
  *
  * Built in two passes so that each constraint is visited once, not once per corner:
  * 1. Per cell, moments of its constraints. Along one axis, the product of two corners' trilinear
@@ -240,19 +240,24 @@ VD_INLINE VdMat3 vd_mat3_inverse_spd(VdMat3 d) {
   return inv;
 }
 
-/* Point k's 27 blocks and neighbour indices (times w_d), its data right-hand side (returned, times
- * w_d) and the inverse of its diagonal block 2 w_r deg_k I + (B^T B)_kk + lambda I, from the
- * moments of the (up to 8) cells it is a corner of. */
+/* Point k's row of the position step's matrix (2 w_r L + w_d B^T B + lambda I) as 27 blocks with
+ * their neighbour indices: w_d B^T B from the moments of the (up to 8) cells k is a corner of, with
+ * the ARAP Laplacian and the damping folded in (on the diagonal block and the 6 face blocks), so
+ * the PCG product is 27 small mat-vecs and nothing else. Returns the data right-hand side (times
+ * w_d), plus (w_d B^T B x0)_k when shift (a coarse level's start, shared/hierarchy.h); the inverse
+ * of the diagonal block goes to diag_inv. */
 VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
                                     VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                    VD_GLOBAL const float* moments, VdSolverWeights w, VD_GLOBAL float* blocks,
-                                    VD_GLOBAL int* nbr, VdMat3* diag_inv) {
+                                    VD_GLOBAL const float* moments, VdSolverWeights w, VD_GLOBAL const vd_float4* x0,
+                                    int shift, VD_GLOBAL float* blocks, VD_GLOBAL int* nbr, VdMat3* diag_inv) {
   int x, y, z;
   vd_grid_coords(list[k], vol, &x, &y, &z);
+  int nb27[VD_BTB_BLOCKS];
   for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
     int nx = x + o % 3 - 1, ny = y + (o / 3) % 3 - 1, nz = z + o / 9 - 1;
     int inside = nx >= 0 && ny >= 0 && nz >= 0 && nx < vol.dim_x && ny < vol.dim_y && nz < vol.dim_z;
-    nbr[VD_BTB_BLOCKS * k + o] = inside ? compact[vd_grid_index(vol, nx, ny, nz)] : -1;
+    nb27[o] = inside ? compact[vd_grid_index(vol, nx, ny, nz)] : -1;
+    nbr[VD_BTB_BLOCKS * k + o] = nb27[o];
   }
   float acc[VD_BTB_FLOATS];
   for (int i = 0; i < VD_BTB_FLOATS; ++i) acc[i] = 0.0f;
@@ -277,30 +282,54 @@ VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL 
     VD_GLOBAL const float* v = mom + VD_BTB_FLOATS + 3 * ok;
     data = data + VD_F4(v[0], v[1], v[2], 0.0f);
   }
+  if (shift) {
+    for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
+      if (nb27[o] < 0) continue;
+      vd_float4 p = x0[nb27[o]];
+      const float* c = acc + 6 * o;
+      data = data + VD_F4(c[0] * p.x + c[1] * p.y + c[2] * p.z, c[1] * p.x + c[3] * p.y + c[4] * p.z,
+                          c[2] * p.x + c[4] * p.y + c[5] * p.z, 0.0f);
+    }
+  }
+  for (int i = 0; i < VD_BTB_FLOATS; ++i) acc[i] *= w.w_dense;
+  /* The Laplacian: -2 w_r w_kj I on the block of face neighbour j (directions -x, +x, -y, +y, -z,
+   * +z: offsets 12, 14, 10, 16, 4, 22), 2 w_r deg_k I + lambda I on the diagonal block (13). */
+  float deg = 0.0f;
+  for (int j = 0; j < 6; ++j) {
+    if (neighbours[6 * k + j] < 0) continue;
+    float wj = w.weighted_edges ? edge_w[6 * k + j] : 1.0f;
+    int o = 13 + ((j & 1) ? 1 : -1) * ((j >> 1) == 0 ? 1 : ((j >> 1) == 1 ? 3 : 9));
+    acc[6 * o + 0] -= 2.0f * w.w_reg * wj;
+    acc[6 * o + 3] -= 2.0f * w.w_reg * wj;
+    acc[6 * o + 5] -= 2.0f * w.w_reg * wj;
+    deg += wj;
+  }
+  float s = 2.0f * w.w_reg * deg + w.damping;
+  acc[6 * 13 + 0] += s;
+  acc[6 * 13 + 3] += s;
+  acc[6 * 13 + 5] += s;
   VD_GLOBAL float* out = blocks + (size_t)VD_BTB_FLOATS * (size_t)k;
-  for (int i = 0; i < VD_BTB_FLOATS; ++i) out[i] = w.w_dense * acc[i];
-  float s = 2.0f * w.w_reg * vd_weighted_degree(k, neighbours, edge_w) + w.damping;
-  /* The diagonal block is offset (0, 0, 0): b = 13. */
+  for (int i = 0; i < VD_BTB_FLOATS; ++i) out[i] = acc[i];
   const float* c = acc + 6 * 13;
   VdMat3 diag;
-  diag.m[0] = w.w_dense * c[0] + s;
-  diag.m[1] = w.w_dense * c[1];
-  diag.m[2] = w.w_dense * c[2];
-  diag.m[3] = w.w_dense * c[1];
-  diag.m[4] = w.w_dense * c[3] + s;
-  diag.m[5] = w.w_dense * c[4];
-  diag.m[6] = w.w_dense * c[2];
-  diag.m[7] = w.w_dense * c[4];
-  diag.m[8] = w.w_dense * c[5] + s;
+  diag.m[0] = c[0];
+  diag.m[1] = c[1];
+  diag.m[2] = c[2];
+  diag.m[3] = c[1];
+  diag.m[4] = c[3];
+  diag.m[5] = c[4];
+  diag.m[6] = c[2];
+  diag.m[7] = c[4];
+  diag.m[8] = c[5];
   *diag_inv = vd_mat3_inverse_spd(diag);
   data = data * w.w_dense;
   data.w = 0.0f;
   return data;
 }
 
-/* (w_d B^T B d)_k from the cached blocks. */
-VD_INLINE vd_float4 vd_btb_apply(int k, VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
-                                 VD_GLOBAL const vd_float4* d) {
+/* (A d)_k from the cached blocks of vd_btb_assemble (the whole matrix, ARAP and damping included). */
+VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
+                                           VD_GLOBAL const vd_float4* d) {
   VD_GLOBAL const float* m = blocks + (size_t)VD_BTB_FLOATS * (size_t)k;
   float qx = 0.0f, qy = 0.0f, qz = 0.0f;
   for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
@@ -313,16 +342,6 @@ VD_INLINE vd_float4 vd_btb_apply(int k, VD_GLOBAL const float* blocks, VD_GLOBAL
     qz += b[2] * v.x + b[4] * v.y + b[5] * v.z;
   }
   return VD_F4(qx, qy, qz, 0.0f);
-}
-
-/* A d at point k with the cached B^T B. */
-VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                           VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr,
-                                           VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
-  vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, w.weighted_edges, d) * (2.0f * w.w_reg) +
-                vd_btb_apply(k, blocks, nbr, d) + d[k] * w.damping;
-  q.w = 0.0f;
-  return q;
 }
 
 /* The ARAP part of the right-hand side at point k: sum_j w_kj (R_k + R_j)(t^_k - t^_j) (times w_r

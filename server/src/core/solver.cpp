@@ -176,9 +176,8 @@ Status DeviceSolver::AssembleFromMoments(const ocl::Buffer<vd_float4>& x0) {
   if (m_ == 0) return Status::Ok();
   ocl::Context& ctx = ops_->ctx();
   const auto& a = *active_;
-  VD_RETURN_IF_ERROR(ocl::AssembleBtb(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, moments_, Weights(),
-                                      btb_, btb_nbr_, data_rhs_, diag_inv_));
-  return ocl::ShiftRhs(ctx, m_, btb_, btb_nbr_, x0, data_rhs_);
+  return ocl::AssembleBtb(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, moments_, Weights(), x0, btb_,
+                          btb_nbr_, data_rhs_, diag_inv_);
 }
 
 StatusOr<double> DeviceSolver::SumPartials(size_t groups) {
@@ -193,7 +192,7 @@ Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float
   ocl::Context& ctx = ops_->ctx();
   const auto& a = *active_;
   const VdSolverWeights w = Weights();
-  if (cache_btb_) return ocl::ApplySystemCached(ctx, m_, a.neighbours, edge_w_, btb_, btb_nbr_, d, w, q);
+  if (cache_btb_) return ocl::ApplySystemCached(ctx, m_, btb_, btb_nbr_, d, q);
   VD_RETURN_IF_ERROR(ocl::ConstraintResiduals(ctx, num_constraints_, cons_, a.compact, vol_, d, residuals_));
   return ocl::ApplySystem(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, cons_, cell_start_, residuals_, d, w,
                           q);

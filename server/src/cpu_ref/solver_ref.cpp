@@ -9,11 +9,12 @@ void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, co
 }
 
 void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const float* edge_w,
-                 const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr, vd_float4* data_rhs,
-                 VdMat3* diag_inv) {
+                 const float* moments, VdSolverWeights w, const vd_float4* x0, int m, float* blocks, int* nbr,
+                 vd_float4* data_rhs, VdMat3* diag_inv) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k)
-    data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, moments, w, blocks, nbr, &diag_inv[k]);
+    data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, moments, w, x0, x0 != nullptr ? 1 : 0,
+                                  blocks, nbr, &diag_inv[k]);
 }
 
 void LevelMoments(const int* list_c, VdVolume coarse, int s, const int* compact_f, VdVolume fine,
@@ -23,15 +24,9 @@ void LevelMoments(const int* list_c, VdVolume coarse, int s, const int* compact_
   for (int k = 0; k < n; ++k) vd_level_moments(k, list_c, coarse, s, compact_f, fine, cons, cell_start, x_f, moments_c);
 }
 
-void ShiftRhs(const float* blocks, const int* nbr, const vd_float4* x0, int n, vd_float4* data_rhs) {
+void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q) {
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < n; ++k) data_rhs[k] = vd_btb_shift_rhs(k, blocks, nbr, x0, data_rhs[k]);
-}
-
-void ApplySystemCached(const int* neighbours, const float* edge_w, const float* blocks, const int* nbr,
-                       const vd_float4* d, VdSolverWeights w, int m, vd_float4* q) {
-#pragma omp parallel for schedule(static)
-  for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, neighbours, edge_w, blocks, nbr, d, w);
+  for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, blocks, nbr, d);
 }
 
 void ArapEdgeWeights(const int* neighbours, const vd_float4* x, const vd_float4* rot, const vd_float4* t_hat, int m,

@@ -16,19 +16,18 @@ void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, co
                  float* moments);
 // Per point: 27 blocks (VD_BTB_FLOATS floats) and neighbour indices, the data
 // right-hand side and the inverse diagonal block, from the moments.
+// x0 (read when not null) shifts the right-hand side by (w_d B^T B x0)_k, as on a coarse level.
 void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const float* edge_w,
-                 const float* moments, VdSolverWeights w, int m, float* blocks, int* nbr, vd_float4* data_rhs,
-                 VdMat3* diag_inv);
-// q = A d (edge-weighted ARAP Laplacian, cached w_d B^T B, damping) for m points.
-void ApplySystemCached(const int* neighbours, const float* edge_w, const float* blocks, const int* nbr,
-                       const vd_float4* d, VdSolverWeights w, int m, vd_float4* q);
+                 const float* moments, VdSolverWeights w, const vd_float4* x0, int m, float* blocks, int* nbr,
+                 vd_float4* data_rhs, VdMat3* diag_inv);
+// q = A d from the cached blocks (edge-weighted ARAP Laplacian, w_d B^T B, damping) for m points.
+void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q);
 
-// A coarse level's moments from the fine constraints, and the x0 part of its right-hand side
-// (shared/hierarchy.h; kernels vd_level_moments_kernel, vd_btb_shift_rhs_kernel), n coarse points.
+// A coarse level's moments from the fine constraints (shared/hierarchy.h; kernel
+// vd_level_moments_kernel), n coarse points.
 void LevelMoments(const int* list_c, VdVolume coarse, int s, const int* compact_f, VdVolume fine,
                   const VdCorrespondence* cons, const vd_uint* cell_start, const vd_float4* x_f, int n,
                   float* moments_c);
-void ShiftRhs(const float* blocks, const int* nbr, const vd_float4* x0, int n, vd_float4* data_rhs);
 
 // Adaptive rigidity (vd_arap_edge_weights_kernel): 6 ARAP edge weights per point for m points.
 void ArapEdgeWeights(const int* neighbours, const vd_float4* x, const vd_float4* rot, const vd_float4* t_hat, int m,

@@ -31,11 +31,6 @@ Status LevelMoments(Context& ctx, size_t n, const Buffer<int32_t>& list_c, VdVol
   return kLevelMoments(ctx, n, list_c, coarse, s, compact_f, fine, cons, cell_start, x_f, moments_c);
 }
 
-Status ShiftRhs(Context& ctx, size_t n, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
-                const Buffer<vd_float4>& x0, Buffer<vd_float4>& data_rhs) {
-  return kBtbShiftRhs(ctx, n, blocks, nbr, x0, data_rhs);
-}
-
 Status ProlongateIncrement(Context& ctx, size_t n, const Buffer<int32_t>& list_f, VdVolume fine, int s,
                            const Buffer<int32_t>& compact_c, VdVolume coarse, const Buffer<vd_float4>& x_c,
                            const Buffer<vd_float4>& x0_c, Buffer<vd_float4>& x_f) {

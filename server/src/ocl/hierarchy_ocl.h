@@ -33,10 +33,6 @@ inline constexpr Kernel<void(const Buffer<int32_t>& list_c, VdVolume coarse, int
                              VdVolume fine, const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start,
                              const Buffer<vd_float4>& x_f, Buffer<float>& moments_c)>
     kLevelMoments{"vd_level_moments_kernel"};
-// One item per coarse active point; adds to data_rhs.
-inline constexpr Kernel<void(const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& x0,
-                             Buffer<vd_float4>& data_rhs)>
-    kBtbShiftRhs{"vd_btb_shift_rhs_kernel"};
 
 // Launchers of HierarchicalSolver (core/hierarchy.cpp), which orders them coarse to fine.
 
@@ -59,9 +55,6 @@ Status RestrictConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence
 Status LevelMoments(Context& ctx, size_t n, const Buffer<int32_t>& list_c, VdVolume coarse, int s,
                     const Buffer<int32_t>& compact_f, VdVolume fine, const Buffer<VdCorrespondence>& cons,
                     const Buffer<uint32_t>& cell_start, const Buffer<vd_float4>& x_f, Buffer<float>& moments_c);
-// data_rhs += w_d B^T B x0 over the n coarse points, from their assembled blocks.
-Status ShiftRhs(Context& ctx, size_t n, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
-                const Buffer<vd_float4>& x0, Buffer<vd_float4>& data_rhs);
 // Adds the coarse increment x_c - x0_c, interpolated, to the n fine active points' x_f.
 Status ProlongateIncrement(Context& ctx, size_t n, const Buffer<int32_t>& list_f, VdVolume fine, int s,
                            const Buffer<int32_t>& compact_c, VdVolume coarse, const Buffer<vd_float4>& x_c,

@@ -63,20 +63,22 @@ Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffe
                 const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
                 Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
   VD_RETURN_IF_ERROR(kCellMoments(ctx, m, list, vol, cons, cell_start, moments));
-  return AssembleBtb(ctx, m, list, compact, vol, neighbours, edge_w, moments, w, blocks, nbr, data_rhs, diag_inv);
+  // No shift: x0 is not read (any buffer serves).
+  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, moments, w, data_rhs, 0, blocks, nbr, data_rhs,
+                      diag_inv);
 }
 
 Status AssembleBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
                    const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<float>& moments,
-                   VdSolverWeights w, Buffer<float>& blocks, Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs,
-                   Buffer<VdMat3>& diag_inv) {
-  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, moments, w, blocks, nbr, data_rhs, diag_inv);
+                   VdSolverWeights w, const Buffer<vd_float4>& x0, Buffer<float>& blocks, Buffer<int32_t>& nbr,
+                   Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
+  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, moments, w, x0, 1, blocks, nbr, data_rhs,
+                      diag_inv);
 }
 
-Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                         const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
-                         VdSolverWeights w, Buffer<vd_float4>& q) {
-  return kSystemApplyCached(ctx, m, neighbours, edge_w, blocks, nbr, d, w, q);
+Status ApplySystemCached(Context& ctx, size_t m, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+                         const Buffer<vd_float4>& d, Buffer<vd_float4>& q) {
+  return kSystemApplyCached(ctx, m, blocks, nbr, d, q);
 }
 
 Status Precondition(Context& ctx, size_t n, const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& r,

@@ -50,14 +50,14 @@ inline constexpr Kernel<void(
 inline constexpr Kernel<void(const Buffer<int32_t>& list, VdVolume vol, const Buffer<VdCorrespondence>& cons,
                              const Buffer<uint32_t>& cell_start,
                              Buffer<float>& moments)> kCellMoments{"vd_cell_moments_kernel"};
-inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                             const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                             const Buffer<float>& moments, VdSolverWeights w, Buffer<float>& blocks,
-                             Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv)>
+// x0 is read only when shift is 1.
+inline constexpr Kernel<void(
+    const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol, const Buffer<int32_t>& neighbours,
+    const Buffer<float>& edge_w, const Buffer<float>& moments, VdSolverWeights w, const Buffer<vd_float4>& x0,
+    int shift, Buffer<float>& blocks, Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv)>
     kBtbAssemble{"vd_btb_assemble_kernel"};
-inline constexpr Kernel<void(const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                             const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
-                             VdSolverWeights w, Buffer<vd_float4>& q)>
+inline constexpr Kernel<void(const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
+                             Buffer<vd_float4>& q)>
     kSystemApplyCached{"vd_system_apply_cached_kernel"};
 inline constexpr Kernel<void(const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& r,
                              Buffer<vd_float4>& z)> kPcgPrecondition{"vd_pcg_precondition"};
@@ -134,23 +134,23 @@ Status ApplySystem(Context& ctx, size_t m, const Buffer<int32_t>& list, const Bu
                    const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
                    const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
                    VdSolverWeights w, Buffer<vd_float4>& q);
-// B^T B as 27 3x3 blocks per point, built once per solve so each PCG iteration skips the
-// constraints, with the data part of b and the Jacobi preconditioner (DataRhsAndDiagonal's
-// outputs): the cells' moments (VD_CELL_MOMENT_FLOATS per active point, scratch), then the points.
+// The system matrix as 27 3x3 blocks per point (w_d B^T B with the ARAP Laplacian and the
+// damping folded in), built once per solve so each PCG iteration skips the constraints, with the data part of b and the
+// Jacobi preconditioner (DataRhsAndDiagonal's outputs): the cells' moments (VD_CELL_MOMENT_FLOATS per active point,
+// scratch), then the points.
 Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
                 const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
                 const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
                 Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv);
-// The same from moments already in place (a coarse level's, built from the level below by
-// vd_level_moments): blocks, neighbour indices, data right-hand side and Jacobi blocks.
+// The same from moments already in place (a coarse level's, vd_level_moments), its right-hand
+// side shifted by (w_d B^T B x0)_k for the level's start x0.
 Status AssembleBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
                    const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<float>& moments,
-                   VdSolverWeights w, Buffer<float>& blocks, Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs,
-                   Buffer<VdMat3>& diag_inv);
-// q = A d from the blocks of BuildBtb.
-Status ApplySystemCached(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
-                         const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& d,
-                         VdSolverWeights w, Buffer<vd_float4>& q);
+                   VdSolverWeights w, const Buffer<vd_float4>& x0, Buffer<float>& blocks, Buffer<int32_t>& nbr,
+                   Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv);
+// q = A d from the blocks of BuildBtb (the whole matrix: ARAP and damping are in the blocks).
+Status ApplySystemCached(Context& ctx, size_t m, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+                         const Buffer<vd_float4>& d, Buffer<vd_float4>& q);
 // The PCG steps over n points; z = M^-1 r with the Jacobi blocks of DataRhsAndDiagonal.
 Status Precondition(Context& ctx, size_t n, const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& r,
                     Buffer<vd_float4>& z);
