@@ -252,12 +252,10 @@ VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL 
                                     int shift, VD_GLOBAL float* blocks, VD_GLOBAL int* nbr, VdMat3* diag_inv) {
   int x, y, z;
   vd_grid_coords(list[k], vol, &x, &y, &z);
-  int nb27[VD_BTB_BLOCKS];
   for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
     int nx = x + o % 3 - 1, ny = y + (o / 3) % 3 - 1, nz = z + o / 9 - 1;
     int inside = nx >= 0 && ny >= 0 && nz >= 0 && nx < vol.dim_x && ny < vol.dim_y && nz < vol.dim_z;
-    nb27[o] = inside ? compact[vd_grid_index(vol, nx, ny, nz)] : -1;
-    nbr[VD_BTB_BLOCKS * k + o] = nb27[o];
+    nbr[VD_BTB_BLOCKS * k + o] = inside ? compact[vd_grid_index(vol, nx, ny, nz)] : -1;
   }
   float acc[VD_BTB_FLOATS];
   for (int i = 0; i < VD_BTB_FLOATS; ++i) acc[i] = 0.0f;
@@ -284,8 +282,9 @@ VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL 
   }
   if (shift) {
     for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
-      if (nb27[o] < 0) continue;
-      vd_float4 p = x0[nb27[o]];
+      int j = nbr[VD_BTB_BLOCKS * k + o];
+      if (j < 0) continue;
+      vd_float4 p = x0[j];
       const float* c = acc + 6 * o;
       data = data + VD_F4(c[0] * p.x + c[1] * p.y + c[2] * p.z, c[1] * p.x + c[3] * p.y + c[4] * p.z,
                           c[2] * p.x + c[4] * p.y + c[5] * p.z, 0.0f);
