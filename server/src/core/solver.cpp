@@ -4,7 +4,6 @@
 #include <cmath>
 #include <sstream>
 
-#include "ocl/hierarchy_ocl.h"
 #include "ocl/procrustes_ocl.h"
 #include "ocl/solver_ocl.h"
 #include "vd/common/flags.h"
@@ -108,16 +107,10 @@ Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& acti
                                 const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels,
                                 const DeviceVolume* field) {
   ocl::Context& ctx = ops_->ctx();
-  vol_ = vol;
-  active_ = &active;
-  m_ = active.count;
-  for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &z_, &p_, &q_, &data_rhs_}) VD_RETURN_IF_ERROR(ctx.Reserve(b, std::max<size_t>(m_, 1)));
-  VD_RETURN_IF_ERROR(ctx.Reserve(&diag_inv_, std::max<size_t>(m_, 1)));
+  VD_RETURN_IF_ERROR(SetupPoints(vol, active));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_count_, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_start_, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_of_, std::max<size_t>(num_pixels, 1)));
-  VD_RETURN_IF_ERROR(ocl::RestPositions(ctx, m_, active.list, vol_, rest_));
-  VD_RETURN_IF_ERROR(ctx.Reserve(&edge_w_, 6 * std::max<size_t>(m_, 1)));
   if (field) VD_RETURN_IF_ERROR(ocl::GatherState(ctx, m_, active.list, field->def_pos, field->def_rot, x_, rot_));
   adaptive_ = field && params_.adaptive_rigidity > 0.f;
   if (adaptive_ && m_ > 0) {
@@ -140,9 +133,6 @@ Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& acti
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
   VD_RETURN_IF_ERROR(ocl::SortConstraints(ctx, num_pixels, per_pixel, cell_of_, cell_start_, cell_count_, cons_));
   if (cache_btb_) {
-    VD_RETURN_IF_ERROR(ctx.Reserve(&moments_, VD_CELL_MOMENT_FLOATS * std::max<size_t>(m_, 1)));
-    VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * std::max<size_t>(m_, 1)));
-    VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * std::max<size_t>(m_, 1)));
     return ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_, cell_start_,
                          Weights(), moments_, btb_, btb_nbr_, data_rhs_, diag_inv_);
   }
@@ -151,25 +141,31 @@ Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& acti
                                  cell_start_, targets_, Weights(), data_rhs_, diag_inv_);
 }
 
-Status DeviceSolver::SetupFromMoments(const VdVolume& vol, const DeviceActiveSet& active, size_t num_constraints) {
-  if (!cache_btb_) return FailedPrecondition("SetupFromMoments needs the cached B^T B");
+Status DeviceSolver::SetupPoints(const VdVolume& vol, const DeviceActiveSet& active) {
   ocl::Context& ctx = ops_->ctx();
   vol_ = vol;
   active_ = &active;
   m_ = active.count;
-  num_constraints_ = num_constraints;
-  adaptive_ = false;
   const size_t m = std::max<size_t>(m_, 1);
   for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &z_, &p_, &q_, &data_rhs_})
     VD_RETURN_IF_ERROR(ctx.Reserve(b, m));
   VD_RETURN_IF_ERROR(ctx.Reserve(&diag_inv_, m));
   VD_RETURN_IF_ERROR(ctx.Reserve(&edge_w_, 6 * m));
-  VD_RETURN_IF_ERROR(ctx.Reserve(&moments_, VD_CELL_MOMENT_FLOATS * m));
-  VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * m));
-  VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * m));
+  if (cache_btb_) {
+    VD_RETURN_IF_ERROR(ctx.Reserve(&moments_, VD_CELL_MOMENT_FLOATS * m));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * m));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * m));
+  }
+  return ocl::RestPositions(ctx, m_, active.list, vol_, rest_);
+}
+
+Status DeviceSolver::SetupFromMoments(const VdVolume& vol, const DeviceActiveSet& active, size_t num_constraints) {
+  if (!cache_btb_) return FailedPrecondition("SetupFromMoments needs the cached B^T B");
+  VD_RETURN_IF_ERROR(SetupPoints(vol, active));
+  num_constraints_ = num_constraints;
+  adaptive_ = false;
   if (m_ == 0) return Status::Ok();
-  VD_RETURN_IF_ERROR(ocl::RestPositions(ctx, m_, active.list, vol_, rest_));
-  return ctx.Fill(edge_w_, 1.f, 6 * m_);
+  return ops_->ctx().Fill(edge_w_, 1.f, 6 * m_);
 }
 
 Status DeviceSolver::AssembleFromMoments(const ocl::Buffer<vd_float4>& x0) {

@@ -105,9 +105,8 @@ class DeviceSolver {
   // Constraints sorted by cell (num_constraints() of them).
   const ocl::Buffer<VdCorrespondence>& constraints() const { return cons_; }
   const ocl::Buffer<vd_float4>& rotations() const { return rot_; }
-  // Per-cell moments of the cached B^T B (VD_CELL_MOMENT_FLOATS per active point) and the
-  // constraints' cell ranges (m + 1), as the last Setup left them.
-  const ocl::Buffer<float>& moments() const { return moments_; }
+  // Per-cell moments of the cached B^T B (VD_CELL_MOMENT_FLOATS per active point; filled by the
+  // caller after SetupFromMoments) and the constraints' cell ranges (m + 1) as Setup left them.
   ocl::Buffer<float>& mutable_moments() { return moments_; }
   const ocl::Buffer<uint32_t>& cell_start() const { return cell_start_; }
 
@@ -133,6 +132,9 @@ class DeviceSolver {
   ocl::Buffer<float> edge_w_;
   // edge_w_ holds strain weights (not all 1) in this solve.
   bool adaptive_ = false;
+  // What every level kind needs per active point: vol_, active_, m_, the per-point buffers
+  // reserved (the cache's too when cached) and the rest positions.
+  Status SetupPoints(const VdVolume& vol, const DeviceActiveSet& active);
   // SetupConstraints with, on the fine level, the field the state is gathered from.
   Status SetupLevel(const VdVolume& vol, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
                     size_t num_pixels, const DeviceVolume* field);

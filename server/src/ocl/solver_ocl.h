@@ -135,9 +135,9 @@ Status ApplySystem(Context& ctx, size_t m, const Buffer<int32_t>& list, const Bu
                    const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
                    VdSolverWeights w, Buffer<vd_float4>& q);
 // The system matrix as 27 3x3 blocks per point (w_d B^T B with the ARAP Laplacian and the
-// damping folded in), built once per solve so each PCG iteration skips the constraints, with the data part of b and the
-// Jacobi preconditioner (DataRhsAndDiagonal's outputs): the cells' moments (VD_CELL_MOMENT_FLOATS per active point,
-// scratch), then the points.
+// damping folded in), built once per solve so each PCG iteration skips the constraints, with the
+// data part of b and the Jacobi preconditioner (DataRhsAndDiagonal's outputs): the cells' moments
+// (VD_CELL_MOMENT_FLOATS per active point, scratch), then the points.
 Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
                 const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
                 const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
