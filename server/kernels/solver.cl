@@ -151,20 +151,6 @@ __kernel void vd_dot4_partial(__global const float4* a, __global const float4* b
   partials[g] = s;
 }
 
-/* Chunked partial sums of two dot products sharing a: (a.b, a.c) per chunk, interleaved. */
-__kernel void vd_dot4x2_partial(__global const float4* a, __global const float4* b, __global const float4* c, int n,
-                                int chunk, __global float* partials, int vd_items) {
-  if ((int)get_global_id(0) >= vd_items) return;
-  int g = get_global_id(0);
-  float s = 0.0f, t = 0.0f;
-  for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k) {
-    s += vd_dot3(a[k], b[k]);
-    t += vd_dot3(a[k], c[k]);
-  }
-  partials[2 * g] = s;
-  partials[2 * g + 1] = t;
-}
-
 /* One item: the PCG scalars from partial sums (shared/solver.h, VD_PCG_SET_*). */
 __kernel void vd_pcg_scalars_kernel(__global const float* partials, int groups, int mode, float tolerance,
                                     __global float* scal, int vd_items) {
@@ -172,21 +158,58 @@ __kernel void vd_pcg_scalars_kernel(__global const float* partials, int groups, 
   vd_pcg_scalars(partials, groups, mode, tolerance, scal);
 }
 
-__kernel void vd_pcg_update_kernel(__global const float* scal, __global const float4* p, __global const float4* q,
-                                   __global const VdMat3* diag_inv, __global float4* x, __global float4* r,
-                                   __global float4* z, int vd_items) {
-  if ((int)get_global_id(0) >= vd_items) return;
-  vd_pcg_update(get_global_id(0), scal, p, q, diag_inv, x, r, z);
+/* Work-group sums of n (1 or 3) values per item at partials[n g + i], item 0 adding the group's
+ * items in order (the CPU references add them in the same order). Every item of the group reaches
+ * the barrier: items past the range contribute zeros. */
+void vd_pcg_group_sums(__local float* buf, const float* v, int n, __global float* partials) {
+  int l = get_local_id(0);
+  for (int i = 0; i < n; ++i) buf[n * l + i] = v[i];
+  barrier(CLK_LOCAL_MEM_FENCE);
+  if (l != 0) return;
+  float acc[3] = {0.0f, 0.0f, 0.0f};
+  for (int j = 0; j < VD_PCG_GROUP; ++j)
+    for (int i = 0; i < n; ++i) acc[i] += buf[n * j + i];
+  for (int i = 0; i < n; ++i) partials[n * get_group_id(0) + i] = acc[i];
 }
 
-/* p = z + beta p (xyz; beta from scal). */
-__kernel void vd_pcg_direction(__global const float* scal, __global const float4* z, __global float4* p,
-                               int vd_items) {
-  if ((int)get_global_id(0) >= vd_items) return;
+/* w = A u from the cached blocks and the group sums of (r.u, w.u, r.r): the product and the
+ * iteration's one reduction in one pass. */
+__kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_apply_dots_kernel(
+    __global const float* blocks, __global const int* nbr, __global const float4* r, __global const float4* u,
+    __global float4* w, __global float* partials, int vd_items) {
+  __local float buf[3 * VD_PCG_GROUP];
   int k = get_global_id(0);
-  vd_float4 v = z[k] + p[k] * scal[VD_PCG_BETA];
-  v.w = 0.0f;
-  p[k] = v;
+  float v[3] = {0.0f, 0.0f, 0.0f};
+  if (k < vd_items) {
+    w[k] = vd_system_apply_cached(k, blocks, nbr, u);
+    vd_pcg_dots(k, r, u, w, v);
+  }
+  vd_pcg_group_sums(buf, v, 3, partials);
+}
+
+/* The same group sums after a product applied elsewhere (the constraints' path). */
+__kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_dots_kernel(__global const float4* r,
+                                                                                           __global const float4* u,
+                                                                                           __global const float4* w,
+                                                                                           __global float* partials,
+                                                                                           int vd_items) {
+  __local float buf[3 * VD_PCG_GROUP];
+  int k = get_global_id(0);
+  float v[3] = {0.0f, 0.0f, 0.0f};
+  if (k < vd_items) vd_pcg_dots(k, r, u, w, v);
+  vd_pcg_group_sums(buf, v, 3, partials);
+}
+
+/* One update per point, with the group sums of the new r.r. */
+__kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_cg_update_kernel(
+    __global const float* scal, __global const VdMat3* diag_inv, __global const float4* w, __global float4* p,
+    __global float4* s, __global float4* x, __global float4* r, __global float4* u, __global float* partials,
+    int vd_items) {
+  __local float buf[VD_PCG_GROUP];
+  int k = get_global_id(0);
+  float rr = 0.0f;
+  if (k < vd_items) rr = vd_pcg_cg_update(k, scal, diag_inv, w, p, s, x, r, u);
+  vd_pcg_group_sums(buf, &rr, 1, partials);
 }
 
 /* Energy partial sums: dense term per chunk of constraints, ARAP per chunk of points. */

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <map>
 #include <random>
+#include <tuple>
 
 #include "cpu_ref/cpu_ref.h"
 #include "cpu_ref/solver_ref.h"
@@ -126,6 +127,33 @@ Eigen::Matrix3d StoredBlock(const std::vector<float>& blocks, const std::vector<
   return got;
 }
 
+// The cached system of problem p with edge weights ew, built on the device (ocl::BuildBtb).
+struct DeviceSystem {
+  ocl::Buffer<float> blocks;
+  ocl::Buffer<int32_t> nbr;
+  ocl::Buffer<vd_float4> rhs;
+  ocl::Buffer<VdMat3> inv;
+};
+StatusOr<DeviceSystem> BuildOnDevice(ocl::Context* ctx, const Problem& p, const std::vector<float>& ew,
+                                     VdSolverWeights w) {
+  const size_t m = p.active.list.size();
+  auto d_list = ToDevice(ctx, p.active.list);
+  auto d_compact = ToDevice(ctx, p.active.compact);
+  auto d_nb = ToDevice(ctx, p.active.neighbours);
+  auto d_ew = ToDevice(ctx, ew);
+  auto d_cons = ToDevice(ctx, p.cons);
+  auto d_start = ToDevice(ctx, p.cell_start);
+  DeviceSystem sys;
+  VD_ASSIGN_OR_RETURN(auto moments, ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * m));
+  VD_ASSIGN_OR_RETURN(sys.blocks, ctx->Alloc<float>(size_t(VD_BTB_FLOATS) * m));
+  VD_ASSIGN_OR_RETURN(sys.nbr, ctx->Alloc<int32_t>(size_t(VD_BTB_BLOCKS) * m));
+  VD_ASSIGN_OR_RETURN(sys.rhs, ctx->Alloc<vd_float4>(m));
+  VD_ASSIGN_OR_RETURN(sys.inv, ctx->Alloc<VdMat3>(m));
+  VD_RETURN_IF_ERROR(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_ew, d_cons, d_start, w, moments,
+                                   sys.blocks, sys.nbr, sys.rhs, sys.inv));
+  return sys;
+}
+
 TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   VD_REQUIRE_OCL(ctx);
   const Problem p = MakeProblem();
@@ -138,27 +166,13 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   w.damping = 2e-4f;
   w.weighted_edges = 1;  // the edge weights below are not all 1
 
-  // Device.
-  auto d_list = ToDevice(ctx, p.active.list);
-  auto d_compact = ToDevice(ctx, p.active.compact);
-  auto d_nb = ToDevice(ctx, p.active.neighbours);
   const std::vector<float> ew = EdgeWeights(p);
-  auto d_ew = ToDevice(ctx, ew);
-  auto d_cons = ToDevice(ctx, p.cons);
-  auto d_start = ToDevice(ctx, p.cell_start);
-  auto d_moments = ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * m);
-  auto d_blocks = ctx->Alloc<float>(size_t(VD_BTB_FLOATS) * m);
-  auto d_nbr = ctx->Alloc<int32_t>(size_t(VD_BTB_BLOCKS) * m);
-  auto d_rhs = ctx->Alloc<vd_float4>(m);
-  auto d_inv = ctx->Alloc<VdMat3>(m);
-  ASSERT_TRUE(d_moments.ok() && d_blocks.ok() && d_nbr.ok() && d_rhs.ok() && d_inv.ok());
-  ASSERT_TRUE(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_ew, d_cons, d_start, w, *d_moments, *d_blocks,
-                            *d_nbr, *d_rhs, *d_inv)
-                  .ok());
-  const auto blocks = FromDevice(ctx, *d_blocks, size_t(VD_BTB_FLOATS) * m);
-  const auto nbr = FromDevice(ctx, *d_nbr, size_t(VD_BTB_BLOCKS) * m);
-  const auto rhs = FromDevice(ctx, *d_rhs, m);
-  const auto inv = FromDevice(ctx, *d_inv, m);
+  auto sys = BuildOnDevice(ctx, p, ew, w);
+  ASSERT_TRUE(sys.ok()) << sys.status().ToString();
+  const auto blocks = FromDevice(ctx, sys->blocks, size_t(VD_BTB_FLOATS) * m);
+  const auto nbr = FromDevice(ctx, sys->nbr, size_t(VD_BTB_BLOCKS) * m);
+  const auto rhs = FromDevice(ctx, sys->rhs, m);
+  const auto inv = FromDevice(ctx, sys->inv, m);
 
   // CPU reference: the same per-item functions.
   std::vector<float> moments(size_t(VD_CELL_MOMENT_FLOATS) * m, 0.f), blocks_ref(size_t(VD_BTB_FLOATS) * m);
@@ -239,28 +253,15 @@ TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
   std::vector<vd_float4> d(m);
   for (auto& v : d) v = VD_F4(uni(rng), uni(rng), uni(rng), 7.f);  // w is not part of the product
 
-  auto d_list = ToDevice(ctx, p.active.list);
-  auto d_compact = ToDevice(ctx, p.active.compact);
-  auto d_nb = ToDevice(ctx, p.active.neighbours);
-  auto d_cons = ToDevice(ctx, p.cons);
-  auto d_start = ToDevice(ctx, p.cell_start);
   auto d_d = ToDevice(ctx, d);
   const std::vector<float> ew = EdgeWeights(p);
-  auto d_ew = ToDevice(ctx, ew);
-  auto d_moments = ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * m);
-  auto d_blocks = ctx->Alloc<float>(size_t(VD_BTB_FLOATS) * m);
-  auto d_nbr = ctx->Alloc<int32_t>(size_t(VD_BTB_BLOCKS) * m);
-  auto d_rhs = ctx->Alloc<vd_float4>(m);
-  auto d_inv = ctx->Alloc<VdMat3>(m);
+  auto sys = BuildOnDevice(ctx, p, ew, w);
   auto d_q = ctx->Alloc<vd_float4>(m);
-  ASSERT_TRUE(d_moments.ok() && d_blocks.ok() && d_nbr.ok() && d_rhs.ok() && d_inv.ok() && d_q.ok());
-  ASSERT_TRUE(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_ew, d_cons, d_start, w, *d_moments, *d_blocks,
-                            *d_nbr, *d_rhs, *d_inv)
-                  .ok());
-  ASSERT_TRUE(ocl::ApplySystemCached(*ctx, m, *d_blocks, *d_nbr, d_d, *d_q).ok());
+  ASSERT_TRUE(sys.ok() && d_q.ok());
+  ASSERT_TRUE(ocl::ApplySystemCached(*ctx, m, sys->blocks, sys->nbr, d_d, *d_q).ok());
   const auto q = FromDevice(ctx, *d_q, m);
-  const auto blocks = FromDevice(ctx, *d_blocks, size_t(VD_BTB_FLOATS) * m);
-  const auto nbr = FromDevice(ctx, *d_nbr, size_t(VD_BTB_BLOCKS) * m);
+  const auto blocks = FromDevice(ctx, sys->blocks, size_t(VD_BTB_FLOATS) * m);
+  const auto nbr = FromDevice(ctx, sys->nbr, size_t(VD_BTB_BLOCKS) * m);
 
   std::vector<vd_float4> q_cpu(m);
   cpu::ApplySystemCached(blocks.data(), nbr.data(), d.data(), m, q_cpu.data());
@@ -287,8 +288,6 @@ TEST(SolverParityTest, CachedApplyMatchesCpuAndTheIndependentProduct) {
   EXPECT_LT(worst, 2e-5 * largest);
 }
 
-// One PCG iteration with its scalars on the device (dot partials, vd_pcg_scalars, update,
-// direction) against the same iteration in double precision on the host.
 // Adaptive rigidity's edge weights (vd_arap_edge_weights_kernel) on the device and the CPU: 1 for
 // a rigid motion of the whole set; for a set folded by 40 degrees about the plane x = 0, low on
 // the edges that straddle the fold, 1 away from it, never under the floor, and the same from
@@ -364,87 +363,173 @@ TEST(SolverParityTest, ArapEdgeWeightsGiveWayAtAFoldOnly) {
   EXPECT_GT(away, 10 * straddle);
 }
 
-TEST(SolverParityTest, PcgScalarsUpdateAndDirectionMatchAHostIteration) {
+// The PCG in its Chronopoulos/Gear form (shared/solver.h) on the cached system of the sphere
+// problem: every pass on the device against its CPU reference, the iterates against textbook PCG
+// in double precision on the host (the same in exact arithmetic), and the convergence test.
+TEST(SolverParityTest, ChronopoulosGearPcgMatchesCpuAndTextbookPcg) {
   VD_REQUIRE_OCL(ctx);
-  const int n = 5000, chunk = 256, groups = (n + chunk - 1) / chunk;
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> uni(-1.f, 1.f);
-  std::vector<vd_float4> b(n), x(n), r(n), p(n), q(n);
-  std::vector<VdMat3> dinv(n);
-  for (int k = 0; k < n; ++k) {
-    b[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.f);
-    x[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.25f);
-    r[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.f);
-    p[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.f);
-    q[k] = p[k] * 2.f + VD_F4(0.1f * uni(rng), 0.1f * uni(rng), 0.1f * uni(rng), 0.f);
-    for (int a = 0; a < 9; ++a) dinv[k].m[a] = (a % 4 == 0 ? 0.5f : 0.f) + 0.05f * uni(rng);
-  }
-  std::vector<vd_float4> z(n);
-  for (int k = 0; k < n; ++k) z[k] = vd_mat3_apply(dinv[k], r[k]);
-  const float tol = 0.1f;
-  auto d_b = ToDevice(ctx, b), d_x = ToDevice(ctx, x), d_r = ToDevice(ctx, r), d_p = ToDevice(ctx, p),
-       d_q = ToDevice(ctx, q), d_z = ToDevice(ctx, z);
-  auto d_inv = ToDevice(ctx, dinv);
-  auto d_part = ctx->Alloc<float>(2 * groups);
-  auto d_scal = ctx->Alloc<float>(VD_PCG_SCALARS);
-  ASSERT_TRUE(d_part.ok() && d_scal.ok());
-  ASSERT_TRUE(ocl::DotPartials(*ctx, groups, d_b, d_b, n, chunk, *d_part).ok());
-  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_STOP, tol, *d_scal).ok());
-  ASSERT_TRUE(ocl::DotPartials2(*ctx, groups, d_r, d_z, d_r, n, chunk, *d_part).ok());
-  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_RZ_RR, tol, *d_scal).ok());
-  const auto s0 = FromDevice(ctx, *d_scal, VD_PCG_SCALARS);
-  ASSERT_TRUE(ocl::DotPartials(*ctx, groups, d_p, d_q, n, chunk, *d_part).ok());
-  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_ALPHA, tol, *d_scal).ok());
-  ASSERT_TRUE(ocl::PcgUpdate(*ctx, n, *d_scal, d_p, d_q, d_inv, d_x, d_r, d_z).ok());
-  ASSERT_TRUE(ocl::DotPartials2(*ctx, groups, d_r, d_z, d_r, n, chunk, *d_part).ok());
-  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_BETA, tol, *d_scal).ok());
-  ASSERT_TRUE(ocl::PcgDirection(*ctx, n, *d_scal, d_z, d_p).ok());
-  const auto s1 = FromDevice(ctx, *d_scal, VD_PCG_SCALARS);
+  const Problem p = MakeProblem();
+  const int m = int(p.active.list.size());
+  VdSolverWeights w{};
+  w.w_dense = 0.8f;
+  w.w_reg = 0.5f;
+  w.damping = 0.01f;
+  w.weighted_edges = 1;
+  auto sys = BuildOnDevice(ctx, p, EdgeWeights(p), w);
+  ASSERT_TRUE(sys.ok()) << sys.status().ToString();
+  auto& d_blocks = sys->blocks;
+  auto& d_nbr = sys->nbr;
+  auto& d_inv = sys->inv;
+  const auto blocks = FromDevice(ctx, d_blocks, size_t(VD_BTB_FLOATS) * m);
+  const auto nbr = FromDevice(ctx, d_nbr, size_t(VD_BTB_BLOCKS) * m);
+  const auto inv = FromDevice(ctx, d_inv, m);
 
-  // Host, double precision.
-  auto dot = [&](const std::vector<vd_float4>& u, const std::vector<vd_float4>& v) {
+  // A x = b from x = 0: r = b, u = M^-1 b; p and s start as NaN (beta 0 must not read them).
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> uni(-1.f, 1.f);
+  std::vector<vd_float4> b(m), x(m), u(m), wv(m), pv(m, VD_F4(NAN, NAN, NAN, 0.f)), sv(pv);
+  for (int k = 0; k < m; ++k) {
+    b[k] = VD_F4(uni(rng), uni(rng), uni(rng), 0.f);
+    x[k] = VD_F4(0.f, 0.f, 0.f, 3.f);  // w is the point's optimisation count: kept
+    u[k] = vd_mat3_apply(inv[k], b[k]);
+  }
+  std::vector<vd_float4> r = b;
+  auto d_r = ToDevice(ctx, r), d_u = ToDevice(ctx, u), d_x = ToDevice(ctx, x), d_p = ToDevice(ctx, pv),
+       d_s = ToDevice(ctx, sv);
+  auto d_w = ctx->Alloc<vd_float4>(m);
+  const int groups = int(ocl::PcgGroups(size_t(m)));
+  auto d_part = ctx->Alloc<float>(3 * size_t(groups));
+  auto d_scal = ctx->Alloc<float>(VD_PCG_SCALARS);
+  ASSERT_TRUE(d_w.ok() && d_part.ok() && d_scal.ok());
+  std::vector<float> part(3 * size_t(groups)), scal(VD_PCG_SCALARS, 0.f);
+  // The stop threshold from b.b (tolerance 1e-6: no convergence within the iterations below).
+  double bb = 0;
+  for (const auto& v : b) bb += double(v.x) * v.x + double(v.y) * v.y + double(v.z) * v.z;
+  const float tol = 1e-6f;
+  scal[VD_PCG_STOP] = float(tol * tol * bb);
+  ASSERT_TRUE(ctx->Upload(*d_scal, scal.data(), VD_PCG_SCALARS).ok());
+
+  auto expect_same = [&](const std::vector<vd_float4>& host, const ocl::Buffer<vd_float4>& dev, const char* what,
+                         int it) {
+    EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, dev, m)), Flatten(host), 1e-5f, 1e-4f))
+        << what << ", iteration " << it;
+  };
+  auto expect_partials = [&](int n, const char* what, int it) {
+    EXPECT_TRUE(AllClose(FromDevice(ctx, *d_part, size_t(n) * groups),
+                         std::vector<float>(part.begin(), part.begin() + n * groups), 1e-5f, 1e-4f))
+        << what << ", iteration " << it;
+  };
+  auto expect_scalars = [&](int it) {
+    const auto got = FromDevice(ctx, *d_scal, VD_PCG_SCALARS);
+    for (int i : {VD_PCG_GAMMA, VD_PCG_RR, VD_PCG_ALPHA, VD_PCG_BETA})
+      EXPECT_NEAR(got[i], scal[i], 1e-4 * std::fabs(scal[i]) + 1e-12) << "scalar " << i << ", iteration " << it;
+    EXPECT_EQ(got[VD_PCG_CONVERGED], scal[VD_PCG_CONVERGED]) << "iteration " << it;
+  };
+
+  // Textbook PCG in double on the host, from the same blocks and preconditioner.
+  using V = std::vector<Eigen::Vector3d>;
+  auto apply = [&](const V& d) {
+    V q(m, Eigen::Vector3d::Zero());
+    for (int k = 0; k < m; ++k)
+      for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
+        const int j = nbr[VD_BTB_BLOCKS * k + o];
+        if (j >= 0) q[k] += StoredBlock(blocks, nbr, k, o) * d[j];
+      }
+    return q;
+  };
+  auto dot = [&](const V& a, const V& c) {
     double acc = 0;
-    for (int k = 0; k < n; ++k) acc += double(u[k].x) * v[k].x + double(u[k].y) * v[k].y + double(u[k].z) * v[k].z;
+    for (int k = 0; k < m; ++k) acc += a[k].dot(c[k]);
     return acc;
   };
-  const double bb = dot(b, b), rz = dot(r, z), rr = dot(r, r), pq = dot(p, q);
-  EXPECT_NEAR(s0[VD_PCG_STOP], tol * tol * bb, 1e-5 * tol * tol * bb);
-  EXPECT_NEAR(s0[VD_PCG_RZ], rz, 1e-5 * std::fabs(rz) + 1e-6);
-  EXPECT_NEAR(s0[VD_PCG_RR], rr, 1e-5 * rr);
-  EXPECT_EQ(s0[VD_PCG_CONVERGED], 0.f);
-  const double alpha = rz / pq;
-  std::vector<vd_float4> x1(n), r1(n), z1(n), p1(n);
-  for (int k = 0; k < n; ++k) {
-    x1[k] = x[k] + p[k] * float(alpha);
-    x1[k].w = x[k].w;
-    r1[k] = r[k] - q[k] * float(alpha);
-    r1[k].w = 0.f;
-    z1[k] = vd_mat3_apply(dinv[k], r1[k]);
-  }
-  const double rz1 = dot(r1, z1), rr1 = dot(r1, r1), beta = rz1 / rz;
-  for (int k = 0; k < n; ++k) {
-    p1[k] = z1[k] + p[k] * float(beta);
-    p1[k].w = 0.f;
-  }
-  EXPECT_NEAR(s1[VD_PCG_ALPHA], alpha, 1e-5 * std::fabs(alpha));
-  EXPECT_NEAR(s1[VD_PCG_BETA], beta, 1e-4 * std::fabs(beta));
-  EXPECT_NEAR(s1[VD_PCG_RR], rr1, 1e-4 * rr1);
-  // rr1 is above tol^2 b.b here (checked), so the iteration has not converged.
-  ASSERT_GT(rr1, tol * tol * bb);
-  EXPECT_EQ(s1[VD_PCG_CONVERGED], 0.f);
-  EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_x, n)), Flatten(x1), 1e-6f, 1e-5f));
-  EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_r, n)), Flatten(r1), 1e-6f, 1e-5f));
-  EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_z, n)), Flatten(z1), 1e-6f, 1e-5f));
-  EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_p, n)), Flatten(p1), 1e-5f, 1e-4f));
+  auto precond = [&](const V& v) {
+    V z(m);
+    for (int k = 0; k < m; ++k) {
+      Eigen::Matrix3d mi;
+      for (int a = 0; a < 9; ++a) mi(a / 3, a % 3) = inv[k].m[a];
+      z[k] = mi * v[k];
+    }
+    return z;
+  };
+  V hx(m, Eigen::Vector3d::Zero()), hr(m);
+  for (int k = 0; k < m; ++k) hr[k] = Eigen::Vector3d(b[k].x, b[k].y, b[k].z);
+  V hz = precond(hr), hp = hz;
+  double rz = dot(hr, hz);
 
-  // Converged: alpha and beta are 0 from then on and x stays.
-  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_STOP, 10.f, *d_scal).ok());
-  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_RZ_RR, 10.f, *d_scal).ok());
-  ASSERT_TRUE(ocl::DotPartials(*ctx, groups, d_p, d_q, n, chunk, *d_part).ok());
-  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_ALPHA, 10.f, *d_scal).ok());
+  // Start: w = A u with its dots, the first step size.
+  ASSERT_TRUE(ocl::PcgApplyDots(*ctx, m, d_blocks, d_nbr, d_r, d_u, *d_w, *d_part).ok());
+  cpu::PcgApplyDots(blocks.data(), nbr.data(), r.data(), u.data(), m, wv.data(), part.data());
+  expect_same(wv, *d_w, "w", 0);
+  expect_partials(3, "start triples", 0);
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_START, tol, *d_scal).ok());
+  cpu::PcgScalars(part.data(), groups, VD_PCG_SET_START, tol, scal.data());
+  expect_scalars(0);
+  const int kIterations = 6;
+  for (int it = 1; it <= kIterations; ++it) {
+    ASSERT_TRUE(ocl::PcgCgUpdate(*ctx, m, *d_scal, d_inv, *d_w, d_p, d_s, d_x, d_r, d_u, *d_part).ok());
+    cpu::PcgCgUpdate(scal.data(), inv.data(), wv.data(), m, pv.data(), sv.data(), x.data(), r.data(), u.data(),
+                     part.data());
+    for (auto [host, dev, what] :
+         {std::tuple{&x, &d_x, "x"}, {&r, &d_r, "r"}, {&u, &d_u, "u"}, {&pv, &d_p, "p"}, {&sv, &d_s, "s"}})
+      expect_same(*host, *dev, what, it);
+    expect_partials(1, "r.r", it);
+    ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_RR, tol, *d_scal).ok());
+    cpu::PcgScalars(part.data(), groups, VD_PCG_SET_RR, tol, scal.data());
+    expect_scalars(it);
+    ASSERT_EQ(scal[VD_PCG_CONVERGED], 0.f);
+    ASSERT_TRUE(ocl::PcgApplyDots(*ctx, m, d_blocks, d_nbr, d_r, d_u, *d_w, *d_part).ok());
+    cpu::PcgApplyDots(blocks.data(), nbr.data(), r.data(), u.data(), m, wv.data(), part.data());
+    expect_same(wv, *d_w, "w", it);
+    expect_partials(3, "triples", it);
+    ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_NEXT, tol, *d_scal).ok());
+    cpu::PcgScalars(part.data(), groups, VD_PCG_SET_NEXT, tol, scal.data());
+    expect_scalars(it);
+
+    // The textbook iteration it.
+    const V q = apply(hp);
+    const double alpha = rz / dot(hp, q);
+    for (int k = 0; k < m; ++k) {
+      hx[k] += alpha * hp[k];
+      hr[k] -= alpha * q[k];
+    }
+    hz = precond(hr);
+    const double rz_new = dot(hr, hz);
+    for (int k = 0; k < m; ++k) hp[k] = hz[k] + (rz_new / rz) * hp[k];
+    rz = rz_new;
+    // The iterates agree with textbook PCG's to float precision.
+    const auto gx = FromDevice(ctx, d_x, m);
+    double worst = 0, largest = 0;
+    for (int k = 0; k < m; ++k) {
+      worst = std::max(worst, (Eigen::Vector3d(gx[k].x, gx[k].y, gx[k].z) - hx[k]).cwiseAbs().maxCoeff());
+      largest = std::max(largest, hx[k].cwiseAbs().maxCoeff());
+      ASSERT_EQ(gx[k].w, 3.f);
+    }
+    std::printf("iteration %d: |x - x_textbook| %.3g of %.3g, r.r %.4g (textbook %.4g)\n", it, worst, largest,
+                scal[VD_PCG_RR], dot(hr, hr));
+    EXPECT_LT(worst, 1e-4 * largest) << "iteration " << it;
+    EXPECT_NEAR(scal[VD_PCG_RR], dot(hr, hr), 1e-3 * dot(hr, hr)) << "iteration " << it;
+  }
+  // The iterations reduce the residual (the system is well conditioned with the preconditioner).
+  EXPECT_LT(dot(hr, hr), 0.05 * bb);
+
+  // Converged (tolerance 0.5): alpha and beta 0, and a further update leaves x and r as they are.
+  scal.assign(VD_PCG_SCALARS, 0.f);
+  scal[VD_PCG_STOP] = float(0.25 * bb);
+  scal[VD_PCG_ALPHA] = 1.f;
+  scal[VD_PCG_BETA] = 1.f;
+  ASSERT_TRUE(ctx->Upload(*d_scal, scal.data(), VD_PCG_SCALARS).ok());
+  ASSERT_TRUE(ocl::PcgCgUpdate(*ctx, m, *d_scal, d_inv, *d_w, d_p, d_s, d_x, d_r, d_u, *d_part).ok());
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_RR, 0.5f, *d_scal).ok());
   const auto s2 = FromDevice(ctx, *d_scal, VD_PCG_SCALARS);
   EXPECT_EQ(s2[VD_PCG_CONVERGED], 1.f);
   EXPECT_EQ(s2[VD_PCG_ALPHA], 0.f);
+  EXPECT_EQ(s2[VD_PCG_BETA], 0.f);
+  ASSERT_TRUE(ocl::PcgApplyDots(*ctx, m, d_blocks, d_nbr, d_r, d_u, *d_w, *d_part).ok());
+  ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_NEXT, 0.5f, *d_scal).ok());
+  const auto x1 = FromDevice(ctx, d_x, m), r1 = FromDevice(ctx, d_r, m);
+  ASSERT_TRUE(ocl::PcgCgUpdate(*ctx, m, *d_scal, d_inv, *d_w, d_p, d_s, d_x, d_r, d_u, *d_part).ok());
+  EXPECT_EQ(Flatten(FromDevice(ctx, d_x, m)), Flatten(x1));
+  EXPECT_EQ(Flatten(FromDevice(ctx, d_r, m)), Flatten(r1));
 }
 
 }  // namespace

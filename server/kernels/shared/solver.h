@@ -395,11 +395,21 @@ VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VdVolume vol
   return b;
 }
 
-/* PCG with its scalars on the device (no host round trip per dot product): the step sizes live
- * in a small buffer of VD_PCG_SCALARS floats that single-item kernels update from partial sums,
- * and the vector kernels read. Once converged (r.r <= stop, or p.q <= 0), alpha and beta are 0 and
- * further iterations leave x unchanged; the host reads the buffer once per iteration to stop. */
-#define VD_PCG_RZ 0
+/* PCG with its scalars on the device: the Chronopoulos/Gear form of preconditioned CG (Ghysels and
+ * Vanroose, "Hiding global synchronization latency in the preconditioned Conjugate Gradient
+ * algorithm", 2014, algorithm 2). With u = M^-1 r and w = A u,
+ *   p = u + beta p,  s = w + beta s,  x += alpha p,  r -= alpha s,  u = M^-1 r,  r.r  (vd_pcg_cg_update)
+ *   w = A u,  gamma' = r.u,  delta = w.u                                            (vd_pcg_dots)
+ *   beta = gamma' / gamma,  alpha = gamma' / (delta - beta gamma' / alpha)           (vd_pcg_scalars)
+ * the same iterates as the textbook form in exact arithmetic (s = A p), but both dots of the step
+ * sizes come from the pass of the product, so an iteration is four launches (update with r.r,
+ * convergence test, product with dots, step sizes) instead of seven, and no pass only re-reads
+ * vectors for a dot. The scalars live in a small buffer of VD_PCG_SCALARS floats that single-item
+ * kernels update from partial sums and the vector kernels read. Once converged (r.r <= stop, or
+ * a non-positive curvature), alpha and beta are 0 and further updates leave x unchanged; the host
+ * reads the buffer once per iteration, after the convergence test and before the product, so
+ * that the last product is never wasted. */
+#define VD_PCG_GAMMA 0
 #define VD_PCG_RR 1
 #define VD_PCG_ALPHA 2
 #define VD_PCG_BETA 3
@@ -407,10 +417,13 @@ VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VdVolume vol
 #define VD_PCG_CONVERGED 5
 #define VD_PCG_SCALARS 8
 /* What vd_pcg_scalars does with its partial sums. */
-#define VD_PCG_SET_STOP 0   /* partials of b.b: stop = tol^2 max(b.b, 1e-30), not converged */
-#define VD_PCG_SET_RZ_RR 1  /* pairs (r.z, r.r): start of the iterations */
-#define VD_PCG_SET_ALPHA 2  /* partials of p.q: alpha = r.z / p.q */
-#define VD_PCG_SET_BETA 3   /* pairs (r.z, r.r) after the update: beta = r.z_new / r.z */
+#define VD_PCG_SET_STOP 0  /* partials of b.b: stop = tol^2 max(b.b, 1e-30), not converged */
+#define VD_PCG_SET_START 1 /* triples (r.u, w.u, r.r) of the start: alpha = gamma / delta, beta = 0 */
+#define VD_PCG_SET_RR 2    /* partials of r.r after an update: the convergence test */
+#define VD_PCG_SET_NEXT 3  /* triples after the product: beta and alpha of the next update */
+/* Work items per work-group of the kernels that reduce within a group (ocl::Context::kGroupSize),
+ * so the number of partial sums of m points is ceil(m / VD_PCG_GROUP). */
+#define VD_PCG_GROUP 64
 
 /* Compensated sum of n floats at stride `stride` from `first`. */
 VD_INLINE float vd_sum_partials(VD_GLOBAL const float* partials, int n, int first, int stride) {
@@ -424,7 +437,7 @@ VD_INLINE float vd_sum_partials(VD_GLOBAL const float* partials, int n, int firs
   return s;
 }
 
-/* The single item of vd_pcg_scalars: `groups` partial sums (pairs for the two-dot modes). */
+/* The single item of vd_pcg_scalars: `groups` partial sums (triples for START and NEXT). */
 VD_INLINE void vd_pcg_scalars(VD_GLOBAL const float* partials, int groups, int mode, float tolerance,
                               VD_GLOBAL float* scal) {
   if (mode == VD_PCG_SET_STOP) {
@@ -433,36 +446,69 @@ VD_INLINE void vd_pcg_scalars(VD_GLOBAL const float* partials, int groups, int m
     scal[VD_PCG_CONVERGED] = 0.0f;
     scal[VD_PCG_ALPHA] = 0.0f;
     scal[VD_PCG_BETA] = 0.0f;
-  } else if (mode == VD_PCG_SET_ALPHA) {
-    float pq = vd_sum_partials(partials, groups, 0, 1);
-    int go = scal[VD_PCG_CONVERGED] == 0.0f && pq > 0.0f;
-    scal[VD_PCG_ALPHA] = go ? scal[VD_PCG_RZ] / pq : 0.0f;
-    if (!go) scal[VD_PCG_CONVERGED] = 1.0f;
-  } else {
-    float rz = vd_sum_partials(partials, groups, 0, 2);
-    float rr = vd_sum_partials(partials, groups, 1, 2);
-    int done = scal[VD_PCG_CONVERGED] != 0.0f;
-    if (mode == VD_PCG_SET_BETA) scal[VD_PCG_BETA] = (!done && scal[VD_PCG_RZ] != 0.0f) ? rz / scal[VD_PCG_RZ] : 0.0f;
-    if (!done) {
-      scal[VD_PCG_RZ] = rz;
-      scal[VD_PCG_RR] = rr;
-      if (rr <= scal[VD_PCG_STOP]) scal[VD_PCG_CONVERGED] = 1.0f;
-    }
+    return;
   }
+  int go = scal[VD_PCG_CONVERGED] == 0.0f;
+  if (mode == VD_PCG_SET_RR) {
+    float rr = vd_sum_partials(partials, groups, 0, 1);
+    if (go) scal[VD_PCG_RR] = rr;
+    if (go && !(rr > scal[VD_PCG_STOP])) {
+      scal[VD_PCG_CONVERGED] = 1.0f;
+      scal[VD_PCG_ALPHA] = 0.0f;
+      scal[VD_PCG_BETA] = 0.0f;
+    }
+    return;
+  }
+  float ru = vd_sum_partials(partials, groups, 0, 3);
+  float wu = vd_sum_partials(partials, groups, 1, 3);
+  float beta = 0.0f, denom = wu;
+  if (mode == VD_PCG_SET_START) {
+    float rr = vd_sum_partials(partials, groups, 2, 3);
+    if (go) scal[VD_PCG_RR] = rr;
+    go = go && rr > scal[VD_PCG_STOP];
+  } else {
+    float gamma = scal[VD_PCG_GAMMA], alpha = scal[VD_PCG_ALPHA];
+    go = go && gamma > 0.0f && alpha > 0.0f;
+    beta = go ? ru / gamma : 0.0f;
+    denom = go ? wu - beta * ru / alpha : 0.0f;
+  }
+  /* M and A are positive definite: r.u > 0 and a positive curvature, unless converged or broken. */
+  go = go && ru > 0.0f && denom > 0.0f;
+  scal[VD_PCG_ALPHA] = go ? ru / denom : 0.0f;
+  scal[VD_PCG_BETA] = go ? beta : 0.0f;
+  if (go) scal[VD_PCG_GAMMA] = ru;
+  if (!go) scal[VD_PCG_CONVERGED] = 1.0f;
 }
 
-/* x += alpha p, r -= alpha q, z = M^-1 r at point k (xyz; alpha from scal). */
-VD_INLINE void vd_pcg_update(int k, VD_GLOBAL const float* scal, VD_GLOBAL const vd_float4* p,
-                             VD_GLOBAL const vd_float4* q, VD_GLOBAL const VdMat3* diag_inv, VD_GLOBAL vd_float4* x,
-                             VD_GLOBAL vd_float4* r, VD_GLOBAL vd_float4* z) {
-  float a = scal[VD_PCG_ALPHA];
-  vd_float4 xk = x[k] + p[k] * a;
+/* One update at point k (xyz; alpha and beta from scal): p = u + beta p, s = w + beta s,
+ * x += alpha p, r -= alpha s, u = M^-1 r; returns the new r.r term. At the start (beta 0) p and s
+ * are not read. */
+VD_INLINE float vd_pcg_cg_update(int k, VD_GLOBAL const float* scal, VD_GLOBAL const VdMat3* diag_inv,
+                                 VD_GLOBAL const vd_float4* w, VD_GLOBAL vd_float4* p, VD_GLOBAL vd_float4* s,
+                                 VD_GLOBAL vd_float4* x, VD_GLOBAL vd_float4* r, VD_GLOBAL vd_float4* u) {
+  float a = scal[VD_PCG_ALPHA], b = scal[VD_PCG_BETA];
+  vd_float4 pk = b != 0.0f ? u[k] + p[k] * b : u[k];
+  vd_float4 sk = b != 0.0f ? w[k] + s[k] * b : w[k];
+  pk.w = 0.0f;
+  sk.w = 0.0f;
+  p[k] = pk;
+  s[k] = sk;
+  vd_float4 xk = x[k] + pk * a;
   xk.w = x[k].w;
   x[k] = xk;
-  vd_float4 rk = r[k] - q[k] * a;
+  vd_float4 rk = r[k] - sk * a;
   rk.w = 0.0f;
   r[k] = rk;
-  z[k] = vd_mat3_apply(diag_inv[k], rk);
+  u[k] = vd_mat3_apply(diag_inv[k], rk);
+  return vd_dot3(rk, rk);
+}
+
+/* Point k's terms of the three dots after a product: (r.u, w.u, r.r). */
+VD_INLINE void vd_pcg_dots(int k, VD_GLOBAL const vd_float4* r, VD_GLOBAL const vd_float4* u,
+                           VD_GLOBAL const vd_float4* w, float* out) {
+  out[0] = vd_dot3(r[k], u[k]);
+  out[1] = vd_dot3(w[k], u[k]);
+  out[2] = vd_dot3(r[k], r[k]);
 }
 
 /* Energy terms (paper eqs. 2 and 4) for tests and the status: one constraint's weighted squared

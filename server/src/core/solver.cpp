@@ -147,7 +147,7 @@ Status DeviceSolver::SetupPoints(const VdVolume& vol, const DeviceActiveSet& act
   active_ = &active;
   m_ = active.count;
   const size_t m = std::max<size_t>(m_, 1);
-  for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &z_, &p_, &q_, &data_rhs_})
+  for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &u_, &w_, &p_, &s_, &data_rhs_})
     VD_RETURN_IF_ERROR(ctx.Reserve(b, m));
   VD_RETURN_IF_ERROR(ctx.Reserve(&diag_inv_, m));
   VD_RETURN_IF_ERROR(ctx.Reserve(&edge_w_, 6 * m));
@@ -194,6 +194,13 @@ Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float
                           q);
 }
 
+Status DeviceSolver::ApplyDots() {
+  ocl::Context& ctx = ops_->ctx();
+  if (cache_btb_) return ocl::PcgApplyDots(ctx, m_, btb_, btb_nbr_, r_, u_, w_, partials_);
+  VD_RETURN_IF_ERROR(Apply(u_, w_));
+  return ocl::PcgDots(ctx, m_, r_, u_, w_, partials_);
+}
+
 StatusOr<int> DeviceSolver::PositionStep() {
   if (m_ == 0) return 0;
   ocl::Context& ctx = ops_->ctx();
@@ -201,33 +208,34 @@ StatusOr<int> DeviceSolver::PositionStep() {
   const auto& a = *active_;
   VD_RETURN_IF_ERROR(ctx.Copy(x_, x_prev_, m_));
   VD_RETURN_IF_ERROR(ocl::SystemRhs(ctx, m_, a.list, vol_, a.neighbours, edge_w_, rot_, data_rhs_, x_prev_, w, b_));
-  // r = b - A x
+  // r = b - A x, u = M^-1 r
   VD_RETURN_IF_ERROR(Apply(x_, r_));
   VD_RETURN_IF_ERROR(ocl::SubFrom(ctx, m_, b_, r_));
-  VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, z_));
-  VD_RETURN_IF_ERROR(ctx.Copy(z_, p_, m_));
+  VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, u_));
 
-  // Scalars on the device: one host round trip per iteration (the convergence test), not four.
-  const size_t groups = std::max<size_t>((m_ + kChunk - 1) / kChunk, 1);
-  VD_RETURN_IF_ERROR(ctx.Reserve(&partials_, 2 * groups));
+  // Scalars on the device (shared/solver.h): per iteration an update with r.r, the convergence
+  // test, one host round trip, then the product with the dots of the step sizes.
+  const size_t chunks = std::max<size_t>((m_ + kChunk - 1) / kChunk, 1);
+  const size_t groups = ocl::PcgGroups(m_);
+  VD_RETURN_IF_ERROR(ctx.Reserve(&partials_, std::max(chunks, 3 * groups)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&scal_, VD_PCG_SCALARS));
   const float tol = params_.pcg_tolerance;
-  VD_RETURN_IF_ERROR(ocl::DotPartials(ctx, groups, b_, b_, int(m_), kChunk, partials_));
-  VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_STOP, tol, scal_));
-  VD_RETURN_IF_ERROR(ocl::DotPartials2(ctx, groups, r_, z_, r_, int(m_), kChunk, partials_));
-  VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_RZ_RR, tol, scal_));
+  VD_RETURN_IF_ERROR(ocl::DotPartials(ctx, chunks, b_, b_, int(m_), kChunk, partials_));
+  VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(chunks), VD_PCG_SET_STOP, tol, scal_));
+  VD_RETURN_IF_ERROR(ApplyDots());
+  VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_START, tol, scal_));
   float scal[VD_PCG_SCALARS];
   int it = 0;
-  for (; it < params_.pcg_iterations; ++it) {
+  VD_RETURN_IF_ERROR(ctx.Download(scal_, scal, VD_PCG_SCALARS));
+  while (it < params_.pcg_iterations && scal[VD_PCG_CONVERGED] == 0.f) {
+    VD_RETURN_IF_ERROR(ocl::PcgCgUpdate(ctx, m_, scal_, diag_inv_, w_, p_, s_, x_, r_, u_, partials_));
+    ++it;
+    if (it == params_.pcg_iterations) break;  // no further update would use the next product
+    VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_RR, tol, scal_));
     VD_RETURN_IF_ERROR(ctx.Download(scal_, scal, VD_PCG_SCALARS));
     if (scal[VD_PCG_CONVERGED] != 0.f) break;
-    VD_RETURN_IF_ERROR(Apply(p_, q_));
-    VD_RETURN_IF_ERROR(ocl::DotPartials(ctx, groups, p_, q_, int(m_), kChunk, partials_));
-    VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_ALPHA, tol, scal_));
-    VD_RETURN_IF_ERROR(ocl::PcgUpdate(ctx, m_, scal_, p_, q_, diag_inv_, x_, r_, z_));
-    VD_RETURN_IF_ERROR(ocl::DotPartials2(ctx, groups, r_, z_, r_, int(m_), kChunk, partials_));
-    VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_BETA, tol, scal_));
-    VD_RETURN_IF_ERROR(ocl::PcgDirection(ctx, m_, scal_, z_, p_));
+    VD_RETURN_IF_ERROR(ApplyDots());
+    VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_NEXT, tol, scal_));
   }
   return it;
 }

@@ -126,7 +126,10 @@ class DeviceSolver {
   ocl::Buffer<VdCorrespondence> cons_;
   ocl::Buffer<float> targets_;
   ocl::Buffer<float> residuals_;
-  ocl::Buffer<vd_float4> x_, x_prev_, rot_, rest_, b_, r_, z_, p_, q_;
+  ocl::Buffer<vd_float4> x_, x_prev_, rot_, rest_, b_;
+  // The PCG's vectors (Chronopoulos/Gear form, shared/solver.h): residual r, preconditioned u =
+  // M^-1 r, its product w = A u, direction p and its product s = A p.
+  ocl::Buffer<vd_float4> r_, u_, w_, p_, s_;
   // ARAP weight of each point's six edges, fixed per solve: 1, or from the field's strain
   // (adaptive rigidity, fine level only).
   ocl::Buffer<float> edge_w_;
@@ -148,6 +151,8 @@ class DeviceSolver {
   ocl::Buffer<float> moments_;
   // A d into q (both paths).
   Status Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float4>& q);
+  // w_ = A u_ with the triples (r.u, w.u, r.r) per work-group in partials_ (both paths).
+  Status ApplyDots();
   // Constraint-only part of b, fixed per solve.
   ocl::Buffer<vd_float4> data_rhs_;
   ocl::Buffer<VdMat3> diag_inv_;

@@ -1,5 +1,8 @@
 #include "cpu_ref/solver_ref.h"
 
+#include <algorithm>
+#include <vector>
+
 namespace vd::cpu {
 
 void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, const vd_uint* cell_start, int m,
@@ -27,6 +30,42 @@ void LevelMoments(const int* list_c, VdVolume coarse, int s, const int* compact_
 void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, blocks, nbr, d);
+}
+
+namespace {
+// The kernels' group sums (vd_pcg_group_sums): values[n k + i] summed per group, in item order.
+void GroupSums(const std::vector<float>& values, int m, int n, float* partials) {
+  const int groups = (m + VD_PCG_GROUP - 1) / VD_PCG_GROUP;
+  for (int g = 0; g < groups; ++g)
+    for (int i = 0; i < n; ++i) {
+      float acc = 0.0f;
+      for (int k = g * VD_PCG_GROUP; k < std::min(m, (g + 1) * VD_PCG_GROUP); ++k) acc += values[size_t(n) * k + i];
+      partials[n * g + i] = acc;
+    }
+}
+}  // namespace
+
+void PcgApplyDots(const float* blocks, const int* nbr, const vd_float4* r, const vd_float4* u, int m, vd_float4* w,
+                  float* partials) {
+  std::vector<float> v(3 * size_t(m));
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k) {
+    w[k] = vd_system_apply_cached(k, blocks, nbr, u);
+    vd_pcg_dots(k, r, u, w, &v[3 * size_t(k)]);
+  }
+  GroupSums(v, m, 3, partials);
+}
+
+void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, int m, vd_float4* p, vd_float4* s,
+                 vd_float4* x, vd_float4* r, vd_float4* u, float* partials) {
+  std::vector<float> v(m);
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k) v[k] = vd_pcg_cg_update(k, scal, diag_inv, w, p, s, x, r, u);
+  GroupSums(v, m, 1, partials);
+}
+
+void PcgScalars(const float* partials, int groups, int mode, float tolerance, float* scal) {
+  vd_pcg_scalars(partials, groups, mode, tolerance, scal);
 }
 
 void ArapEdgeWeights(const int* neighbours, const vd_float4* x, const vd_float4* rot, const vd_float4* t_hat, int m,

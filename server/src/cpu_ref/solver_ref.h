@@ -22,6 +22,14 @@ void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* n
                  vd_float4* data_rhs, VdMat3* diag_inv);
 // q = A d from the cached blocks (edge-weighted ARAP Laplacian, w_d B^T B, damping) for m points.
 void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q);
+// The PCG's passes (shared/solver.h, the Chronopoulos/Gear form) over m points, with partial sums
+// per group of VD_PCG_GROUP points added in the kernels' order: w = A u with the triples
+// (r.u, w.u, r.r); the update with the singles of the new r.r; the scalars from the partials.
+void PcgApplyDots(const float* blocks, const int* nbr, const vd_float4* r, const vd_float4* u, int m, vd_float4* w,
+                  float* partials);
+void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, int m, vd_float4* p, vd_float4* s,
+                 vd_float4* x, vd_float4* r, vd_float4* u, float* partials);
+void PcgScalars(const float* partials, int groups, int mode, float tolerance, float* scal);
 
 // A coarse level's moments from the fine constraints (shared/hierarchy.h; kernel
 // vd_level_moments_kernel), n coarse points.

@@ -118,25 +118,29 @@ Status ArapEdgeWeights(Context& ctx, size_t m, const Buffer<int32_t>& neighbours
   return kArapEdgeWeights(ctx, m, neighbours, x, rot, t_hat, scale2, floor_w, edge_w);
 }
 
-Status DotPartials2(Context& ctx, size_t groups, const Buffer<vd_float4>& a, const Buffer<vd_float4>& b,
-                    const Buffer<vd_float4>& c, int n, int chunk, Buffer<float>& partials) {
-  return kDot4x2Partial(ctx, groups, a, b, c, n, chunk, partials);
-}
-
 Status PcgScalars(Context& ctx, const Buffer<float>& partials, int groups, int mode, float tolerance,
                   Buffer<float>& scal) {
   return kPcgScalars(ctx, 1, partials, groups, mode, tolerance, scal);
 }
 
-Status PcgUpdate(Context& ctx, size_t n, const Buffer<float>& scal, const Buffer<vd_float4>& p,
-                 const Buffer<vd_float4>& q, const Buffer<VdMat3>& diag_inv, Buffer<vd_float4>& x,
-                 Buffer<vd_float4>& r, Buffer<vd_float4>& z) {
-  return kPcgUpdate(ctx, n, scal, p, q, diag_inv, x, r, z);
+// The group reductions assume the launch's work-groups are VD_PCG_GROUP items (reqd_work_group_size).
+static_assert(Context::kGroupSize == VD_PCG_GROUP);
+
+Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+                    const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, Buffer<vd_float4>& w,
+                    Buffer<float>& partials) {
+  return kPcgApplyDots(ctx, m, blocks, nbr, r, u, w, partials);
 }
 
-Status PcgDirection(Context& ctx, size_t n, const Buffer<float>& scal, const Buffer<vd_float4>& z,
-                    Buffer<vd_float4>& p) {
-  return kPcgDirection(ctx, n, scal, z, p);
+Status PcgDots(Context& ctx, size_t m, const Buffer<vd_float4>& r, const Buffer<vd_float4>& u,
+               const Buffer<vd_float4>& w, Buffer<float>& partials) {
+  return kPcgDots(ctx, m, r, u, w, partials);
+}
+
+Status PcgCgUpdate(Context& ctx, size_t m, const Buffer<float>& scal, const Buffer<VdMat3>& diag_inv,
+                   const Buffer<vd_float4>& w, Buffer<vd_float4>& p, Buffer<vd_float4>& s, Buffer<vd_float4>& x,
+                   Buffer<vd_float4>& r, Buffer<vd_float4>& u, Buffer<float>& partials) {
+  return kPcgCgUpdate(ctx, m, scal, diag_inv, w, p, s, x, r, u, partials);
 }
 
 }  // namespace vd::ocl

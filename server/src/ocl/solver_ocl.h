@@ -67,18 +67,23 @@ inline constexpr Kernel<void(float a, const Buffer<vd_float4>& x, Buffer<vd_floa
 inline constexpr Kernel<void(const Buffer<vd_float4>& b, Buffer<vd_float4>& y)> kSubFrom4{"vd_sub_from4"};
 // One item per chunk of `chunk` points.
 inline constexpr Kernel<void(const Buffer<vd_float4>& a, const Buffer<vd_float4>& b, int n, int chunk,
-                             Buffer<float>& partials)> kDot4Partial{"vd_dot4_partial"};
-// One item per chunk of `chunk` points: interleaved partials of (a.b, a.c).
-inline constexpr Kernel<void(const Buffer<vd_float4>& a, const Buffer<vd_float4>& b, const Buffer<vd_float4>& c, int n,
-                             int chunk, Buffer<float>& partials)> kDot4x2Partial{"vd_dot4x2_partial"};
+                             Buffer<float>& partials)>
+    kDot4Partial{"vd_dot4_partial"};
 // One item.
 inline constexpr Kernel<void(const Buffer<float>& partials, int groups, int mode, float tolerance,
                              Buffer<float>& scal)> kPcgScalars{"vd_pcg_scalars_kernel"};
-inline constexpr Kernel<void(const Buffer<float>& scal, const Buffer<vd_float4>& p, const Buffer<vd_float4>& q,
-                             const Buffer<VdMat3>& diag_inv, Buffer<vd_float4>& x, Buffer<vd_float4>& r,
-                             Buffer<vd_float4>& z)> kPcgUpdate{"vd_pcg_update_kernel"};
-inline constexpr Kernel<void(const Buffer<float>& scal, const Buffer<vd_float4>& z,
-                             Buffer<vd_float4>& p)> kPcgDirection{"vd_pcg_direction"};
+// Work-groups of VD_PCG_GROUP points, one triple of partial sums (r.u, w.u, r.r) each.
+inline constexpr Kernel<void(const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& r,
+                             const Buffer<vd_float4>& u, Buffer<vd_float4>& w, Buffer<float>& partials)>
+    kPcgApplyDots{"vd_pcg_apply_dots_kernel"};
+inline constexpr Kernel<void(const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, const Buffer<vd_float4>& w,
+                             Buffer<float>& partials)>
+    kPcgDots{"vd_pcg_dots_kernel"};
+// Work-groups of VD_PCG_GROUP points, one partial sum of the new r.r each.
+inline constexpr Kernel<void(const Buffer<float>& scal, const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& w,
+                             Buffer<vd_float4>& p, Buffer<vd_float4>& s, Buffer<vd_float4>& x, Buffer<vd_float4>& r,
+                             Buffer<vd_float4>& u, Buffer<float>& partials)>
+    kPcgCgUpdate{"vd_pcg_cg_update_kernel"};
 // One item per chunk of `chunk` constraints.
 inline constexpr Kernel<void(const Buffer<VdCorrespondence>& cons, int n, int chunk, const Buffer<int32_t>& compact,
                              VdVolume vol, const Buffer<vd_float4>& x,
@@ -161,20 +166,25 @@ Status SubFrom(Context& ctx, size_t n, const Buffer<vd_float4>& b, Buffer<vd_flo
 // a . b over n points as partial sums over `groups` chunks of `chunk` (summed on the host, in double).
 Status DotPartials(Context& ctx, size_t groups, const Buffer<vd_float4>& a, const Buffer<vd_float4>& b, int n,
                    int chunk, Buffer<float>& partials);
-// Interleaved partial sums (a.b, a.c) over `groups` chunks, for the two dots after a PCG update.
-Status DotPartials2(Context& ctx, size_t groups, const Buffer<vd_float4>& a, const Buffer<vd_float4>& b,
-                    const Buffer<vd_float4>& c, int n, int chunk, Buffer<float>& partials);
-// The PCG scalars (shared/solver.h VD_PCG_*) from `groups` partial sums (pairs for the two-dot
-// modes), on the device: mode is one of VD_PCG_SET_*.
+// The PCG scalars (shared/solver.h VD_PCG_*) from `groups` partial sums (triples for START and
+// NEXT), on the device: mode is one of VD_PCG_SET_*.
 Status PcgScalars(Context& ctx, const Buffer<float>& partials, int groups, int mode, float tolerance,
                   Buffer<float>& scal);
-// x += alpha p, r -= alpha q, z = M^-1 r over n points, alpha from scal.
-Status PcgUpdate(Context& ctx, size_t n, const Buffer<float>& scal, const Buffer<vd_float4>& p,
-                 const Buffer<vd_float4>& q, const Buffer<VdMat3>& diag_inv, Buffer<vd_float4>& x,
-                 Buffer<vd_float4>& r, Buffer<vd_float4>& z);
-// p = z + beta p over n points, beta from scal.
-Status PcgDirection(Context& ctx, size_t n, const Buffer<float>& scal, const Buffer<vd_float4>& z,
-                    Buffer<vd_float4>& p);
+// w = A u over m points from the cached blocks, with the triples (r.u, w.u, r.r) of each
+// work-group of VD_PCG_GROUP points in partials (PcgGroups(m) of them).
+Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+                    const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, Buffer<vd_float4>& w,
+                    Buffer<float>& partials);
+// The same triples for a w = A u computed before.
+Status PcgDots(Context& ctx, size_t m, const Buffer<vd_float4>& r, const Buffer<vd_float4>& u,
+               const Buffer<vd_float4>& w, Buffer<float>& partials);
+// Partial-sum triples of PcgApplyDots and PcgDots for m points.
+inline size_t PcgGroups(size_t m) { return (m + VD_PCG_GROUP - 1) / VD_PCG_GROUP; }
+// p = u + beta p, s = w + beta s, x += alpha p, r -= alpha s, u = M^-1 r over m points, alpha and
+// beta from scal, with the partial sums of the new r.r per work-group (PcgGroups(m) of them).
+Status PcgCgUpdate(Context& ctx, size_t m, const Buffer<float>& scal, const Buffer<VdMat3>& diag_inv,
+                   const Buffer<vd_float4>& w, Buffer<vd_float4>& p, Buffer<vd_float4>& s, Buffer<vd_float4>& x,
+                   Buffer<vd_float4>& r, Buffer<vd_float4>& u, Buffer<float>& partials);
 // E_dense over n sorted constraints, partial sums as for DotPartials.
 Status DenseEnergyPartials(Context& ctx, size_t groups, const Buffer<VdCorrespondence>& cons, int n, int chunk,
                            const Buffer<int32_t>& compact, VdVolume vol, const Buffer<vd_float4>& x,
