@@ -200,6 +200,20 @@ __kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_d
   vd_pcg_group_sums(buf, v, 3, partials);
 }
 
+/* The start of a position step (vd_pcg_start), with the group sums of b.b. */
+__kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_start_kernel(
+    __global const int* list, VdVolume vol, __global const int* neighbours, __global const float* edge_w,
+    __global const float4* rot, __global const float4* data_rhs, VdSolverWeights w, __global const float* blocks,
+    __global const int* nbr, __global const VdMat3* diag_inv, __global const float4* x, __global float4* r,
+    __global float4* u, __global float* partials, int vd_items) {
+  __local float buf[VD_PCG_GROUP];
+  int k = get_global_id(0);
+  float bb = 0.0f;
+  if (k < vd_items)
+    bb = vd_pcg_start(k, list, vol, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u);
+  vd_pcg_group_sums(buf, &bb, 1, partials);
+}
+
 /* One update per point, with the group sums of the new r.r. */
 __kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_cg_update_kernel(
     __global const float* scal, __global const VdMat3* diag_inv, __global const float4* w, __global float4* p,

@@ -503,6 +503,22 @@ VD_INLINE float vd_pcg_cg_update(int k, VD_GLOBAL const float* scal, VD_GLOBAL c
   return vd_dot3(rk, rk);
 }
 
+/* The start of a position step at point k from the current x (also the damping's anchor):
+ * b_k (vd_system_rhs), r_k = b_k - (A x)_k from the cached blocks and u_k = M^-1 r_k, in one pass
+ * instead of four; returns the term of b.b (the scale of the convergence test). */
+VD_INLINE float vd_pcg_start(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
+                             VD_GLOBAL const float* edge_w, VD_GLOBAL const vd_float4* rot,
+                             VD_GLOBAL const vd_float4* data_rhs, VdSolverWeights w, VD_GLOBAL const float* blocks,
+                             VD_GLOBAL const int* nbr, VD_GLOBAL const VdMat3* diag_inv, VD_GLOBAL const vd_float4* x,
+                             VD_GLOBAL vd_float4* r, VD_GLOBAL vd_float4* u) {
+  vd_float4 b = vd_system_rhs(k, list, vol, neighbours, edge_w, rot, data_rhs, x, w);
+  vd_float4 rk = b - vd_system_apply_cached(k, blocks, nbr, x);
+  rk.w = 0.0f;
+  r[k] = rk;
+  u[k] = vd_mat3_apply(diag_inv[k], rk);
+  return vd_dot3(b, b);
+}
+
 /* Point k's terms of the three dots after a product: (r.u, w.u, r.r). */
 VD_INLINE void vd_pcg_dots(int k, VD_GLOBAL const vd_float4* r, VD_GLOBAL const vd_float4* u,
                            VD_GLOBAL const vd_float4* w, float* out) {

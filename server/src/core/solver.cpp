@@ -147,8 +147,7 @@ Status DeviceSolver::SetupPoints(const VdVolume& vol, const DeviceActiveSet& act
   active_ = &active;
   m_ = active.count;
   const size_t m = std::max<size_t>(m_, 1);
-  for (auto* b : {&x_, &x_prev_, &rot_, &rest_, &b_, &r_, &u_, &w_, &p_, &s_, &data_rhs_})
-    VD_RETURN_IF_ERROR(ctx.Reserve(b, m));
+  for (auto* b : {&x_, &rot_, &rest_, &b_, &r_, &u_, &w_, &p_, &s_, &data_rhs_}) VD_RETURN_IF_ERROR(ctx.Reserve(b, m));
   VD_RETURN_IF_ERROR(ctx.Reserve(&diag_inv_, m));
   VD_RETURN_IF_ERROR(ctx.Reserve(&edge_w_, 6 * m));
   if (cache_btb_) {
@@ -206,13 +205,6 @@ StatusOr<int> DeviceSolver::PositionStep() {
   ocl::Context& ctx = ops_->ctx();
   const VdSolverWeights w = Weights();
   const auto& a = *active_;
-  VD_RETURN_IF_ERROR(ctx.Copy(x_, x_prev_, m_));
-  VD_RETURN_IF_ERROR(ocl::SystemRhs(ctx, m_, a.list, vol_, a.neighbours, edge_w_, rot_, data_rhs_, x_prev_, w, b_));
-  // r = b - A x, u = M^-1 r
-  VD_RETURN_IF_ERROR(Apply(x_, r_));
-  VD_RETURN_IF_ERROR(ocl::SubFrom(ctx, m_, b_, r_));
-  VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, u_));
-
   // Scalars on the device (shared/solver.h): per iteration an update with r.r, the convergence
   // test, one host round trip, then the product with the dots of the step sizes.
   const size_t chunks = std::max<size_t>((m_ + kChunk - 1) / kChunk, 1);
@@ -220,8 +212,20 @@ StatusOr<int> DeviceSolver::PositionStep() {
   VD_RETURN_IF_ERROR(ctx.Reserve(&partials_, std::max(chunks, 3 * groups)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&scal_, VD_PCG_SCALARS));
   const float tol = params_.pcg_tolerance;
-  VD_RETURN_IF_ERROR(ocl::DotPartials(ctx, chunks, b_, b_, int(m_), kChunk, partials_));
-  VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(chunks), VD_PCG_SET_STOP, tol, scal_));
+  // r = b - A x, u = M^-1 r and the stop from b.b; x is the damping's anchor (b holds lambda x).
+  size_t bb_partials = groups;
+  if (cache_btb_) {
+    VD_RETURN_IF_ERROR(ocl::PcgStart(ctx, m_, a.list, vol_, a.neighbours, edge_w_, rot_, data_rhs_, w, btb_, btb_nbr_,
+                                     diag_inv_, x_, r_, u_, partials_));
+  } else {
+    VD_RETURN_IF_ERROR(ocl::SystemRhs(ctx, m_, a.list, vol_, a.neighbours, edge_w_, rot_, data_rhs_, x_, w, b_));
+    VD_RETURN_IF_ERROR(Apply(x_, r_));
+    VD_RETURN_IF_ERROR(ocl::SubFrom(ctx, m_, b_, r_));
+    VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, u_));
+    VD_RETURN_IF_ERROR(ocl::DotPartials(ctx, chunks, b_, b_, int(m_), kChunk, partials_));
+    bb_partials = chunks;
+  }
+  VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(bb_partials), VD_PCG_SET_STOP, tol, scal_));
   VD_RETURN_IF_ERROR(ApplyDots());
   VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_START, tol, scal_));
   float scal[VD_PCG_SCALARS];

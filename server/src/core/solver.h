@@ -126,7 +126,9 @@ class DeviceSolver {
   ocl::Buffer<VdCorrespondence> cons_;
   ocl::Buffer<float> targets_;
   ocl::Buffer<float> residuals_;
-  ocl::Buffer<vd_float4> x_, x_prev_, rot_, rest_, b_;
+  ocl::Buffer<vd_float4> x_, rot_, rest_;
+  // The right-hand side (the constraints' path only: the cached path never stores it).
+  ocl::Buffer<vd_float4> b_;
   // The PCG's vectors (Chronopoulos/Gear form, shared/solver.h): residual r, preconditioned u =
   // M^-1 r, its product w = A u, direction p and its product s = A p.
   ocl::Buffer<vd_float4> r_, u_, w_, p_, s_;

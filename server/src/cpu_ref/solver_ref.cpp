@@ -64,6 +64,16 @@ void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, 
   GroupSums(v, m, 1, partials);
 }
 
+void PcgStart(const int* list, VdVolume vol, const int* neighbours, const float* edge_w, const vd_float4* rot,
+              const vd_float4* data_rhs, VdSolverWeights w, const float* blocks, const int* nbr, const VdMat3* diag_inv,
+              const vd_float4* x, int m, vd_float4* r, vd_float4* u, float* partials) {
+  std::vector<float> v(m);
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k)
+    v[k] = vd_pcg_start(k, list, vol, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u);
+  GroupSums(v, m, 1, partials);
+}
+
 void PcgScalars(const float* partials, int groups, int mode, float tolerance, float* scal) {
   vd_pcg_scalars(partials, groups, mode, tolerance, scal);
 }

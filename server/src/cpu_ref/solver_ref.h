@@ -30,6 +30,10 @@ void PcgApplyDots(const float* blocks, const int* nbr, const vd_float4* r, const
 void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, int m, vd_float4* p, vd_float4* s,
                  vd_float4* x, vd_float4* r, vd_float4* u, float* partials);
 void PcgScalars(const float* partials, int groups, int mode, float tolerance, float* scal);
+// The start of a position step (vd_pcg_start) over m points, with the singles of b.b.
+void PcgStart(const int* list, VdVolume vol, const int* neighbours, const float* edge_w, const vd_float4* rot,
+              const vd_float4* data_rhs, VdSolverWeights w, const float* blocks, const int* nbr, const VdMat3* diag_inv,
+              const vd_float4* x, int m, vd_float4* r, vd_float4* u, float* partials);
 
 // A coarse level's moments from the fine constraints (shared/hierarchy.h; kernel
 // vd_level_moments_kernel), n coarse points.

@@ -132,6 +132,14 @@ Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& blocks, const B
   return kPcgApplyDots(ctx, m, blocks, nbr, r, u, w, partials);
 }
 
+Status PcgStart(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
+                const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs,
+                VdSolverWeights w, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+                const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& x, Buffer<vd_float4>& r, Buffer<vd_float4>& u,
+                Buffer<float>& partials) {
+  return kPcgStart(ctx, m, list, vol, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u, partials);
+}
+
 Status PcgDots(Context& ctx, size_t m, const Buffer<vd_float4>& r, const Buffer<vd_float4>& u,
                const Buffer<vd_float4>& w, Buffer<float>& partials) {
   return kPcgDots(ctx, m, r, u, w, partials);

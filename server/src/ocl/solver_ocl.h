@@ -79,6 +79,13 @@ inline constexpr Kernel<void(const Buffer<float>& blocks, const Buffer<int32_t>&
 inline constexpr Kernel<void(const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, const Buffer<vd_float4>& w,
                              Buffer<float>& partials)>
     kPcgDots{"vd_pcg_dots_kernel"};
+// Work-groups of VD_PCG_GROUP points, one partial sum of b.b each.
+inline constexpr Kernel<void(const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
+                             const Buffer<float>& edge_w, const Buffer<vd_float4>& rot,
+                             const Buffer<vd_float4>& data_rhs, VdSolverWeights w, const Buffer<float>& blocks,
+                             const Buffer<int32_t>& nbr, const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& x,
+                             Buffer<vd_float4>& r, Buffer<vd_float4>& u, Buffer<float>& partials)>
+    kPcgStart{"vd_pcg_start_kernel"};
 // Work-groups of VD_PCG_GROUP points, one partial sum of the new r.r each.
 inline constexpr Kernel<void(const Buffer<float>& scal, const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& w,
                              Buffer<vd_float4>& p, Buffer<vd_float4>& s, Buffer<vd_float4>& x, Buffer<vd_float4>& r,
@@ -178,6 +185,13 @@ Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& blocks, const B
 // The same triples for a w = A u computed before.
 Status PcgDots(Context& ctx, size_t m, const Buffer<vd_float4>& r, const Buffer<vd_float4>& u,
                const Buffer<vd_float4>& w, Buffer<float>& partials);
+// r = b - A x and u = M^-1 r over m points from the cached blocks, b as SystemRhs with x as the
+// damping's anchor, with the partial sums of b.b per work-group (PcgGroups(m) of them).
+Status PcgStart(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
+                const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs,
+                VdSolverWeights w, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+                const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& x, Buffer<vd_float4>& r, Buffer<vd_float4>& u,
+                Buffer<float>& partials);
 // Partial-sum triples of PcgApplyDots and PcgDots for m points.
 inline size_t PcgGroups(size_t m) { return (m + VD_PCG_GROUP - 1) / VD_PCG_GROUP; }
 // p = u + beta p, s = w + beta s, x += alpha p, r -= alpha s, u = M^-1 r over m points, alpha and
