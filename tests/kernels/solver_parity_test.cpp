@@ -127,6 +127,16 @@ Eigen::Matrix3d StoredBlock(const std::vector<float>& blocks, const std::vector<
   return got;
 }
 
+// Weights of the product and PCG tests (edge weights not all 1).
+VdSolverWeights ProductWeights() {
+  VdSolverWeights w{};
+  w.w_dense = 0.8f;
+  w.w_reg = 0.5f;
+  w.damping = 0.01f;
+  w.weighted_edges = 1;
+  return w;
+}
+
 // The cached system of problem p with edge weights ew, built on the device (ocl::BuildBtb).
 struct DeviceSystem {
   ocl::Buffer<float> blocks;
@@ -370,11 +380,7 @@ TEST(SolverParityTest, ChronopoulosGearPcgMatchesCpuAndTextbookPcg) {
   VD_REQUIRE_OCL(ctx);
   const Problem p = MakeProblem();
   const int m = int(p.active.list.size());
-  VdSolverWeights w{};
-  w.w_dense = 0.8f;
-  w.w_reg = 0.5f;
-  w.damping = 0.01f;
-  w.weighted_edges = 1;
+  const VdSolverWeights w = ProductWeights();
   auto sys = BuildOnDevice(ctx, p, EdgeWeights(p), w);
   ASSERT_TRUE(sys.ok()) << sys.status().ToString();
   auto& d_blocks = sys->blocks;
@@ -538,11 +544,7 @@ TEST(SolverParityTest, PcgStartMatchesCpuAndTheSeparatePasses) {
   VD_REQUIRE_OCL(ctx);
   const Problem p = MakeProblem();
   const int m = int(p.active.list.size());
-  VdSolverWeights w{};
-  w.w_dense = 0.8f;
-  w.w_reg = 0.5f;
-  w.damping = 0.01f;
-  w.weighted_edges = 1;
+  const VdSolverWeights w = ProductWeights();
   const std::vector<float> ew = EdgeWeights(p);
   auto sys = BuildOnDevice(ctx, p, ew, w);
   ASSERT_TRUE(sys.ok()) << sys.status().ToString();
