@@ -467,6 +467,16 @@ TEST(SolverParityTest, ChronopoulosGearPcgMatchesCpuAndTextbookPcg) {
   cpu::PcgApplyDots(blocks.data(), nbr.data(), r.data(), u.data(), m, wv.data(), part.data());
   expect_same(wv, *d_w, "w", 0);
   expect_partials(3, "start triples", 0);
+  // The dots alone (the constraints' path, whose product is applied before) give the same triples.
+  {
+    auto d_part2 = ctx->Alloc<float>(3 * size_t(groups));
+    ASSERT_TRUE(d_part2.ok());
+    ASSERT_TRUE(ocl::PcgDots(*ctx, m, d_r, d_u, *d_w, *d_part2).ok());
+    std::vector<float> part2(3 * size_t(groups));
+    cpu::PcgDots(r.data(), u.data(), wv.data(), m, part2.data());
+    EXPECT_TRUE(AllClose(FromDevice(ctx, *d_part2, 3 * size_t(groups)), part2, 1e-5f, 1e-4f));
+    EXPECT_TRUE(AllClose(part2, std::vector<float>(part.begin(), part.begin() + 3 * groups), 1e-5f, 1e-4f));
+  }
   ASSERT_TRUE(ocl::PcgScalars(*ctx, *d_part, groups, VD_PCG_SET_START, tol, *d_scal).ok());
   cpu::PcgScalars(part.data(), groups, VD_PCG_SET_START, tol, scal.data());
   expect_scalars(0);

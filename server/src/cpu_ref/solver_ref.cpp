@@ -56,6 +56,13 @@ void PcgApplyDots(const float* blocks, const int* nbr, const vd_float4* r, const
   GroupSums(v, m, 3, partials);
 }
 
+void PcgDots(const vd_float4* r, const vd_float4* u, const vd_float4* w, int m, float* partials) {
+  std::vector<float> v(3 * size_t(m));
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k) vd_pcg_dots(k, r, u, w, &v[3 * size_t(k)]);
+  GroupSums(v, m, 3, partials);
+}
+
 void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, int m, vd_float4* p, vd_float4* s,
                  vd_float4* x, vd_float4* r, vd_float4* u, float* partials) {
   std::vector<float> v(m);

@@ -27,6 +27,7 @@ void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, 
 // (r.u, w.u, r.r); the update with the singles of the new r.r; the scalars from the partials.
 void PcgApplyDots(const float* blocks, const int* nbr, const vd_float4* r, const vd_float4* u, int m, vd_float4* w,
                   float* partials);
+void PcgDots(const vd_float4* r, const vd_float4* u, const vd_float4* w, int m, float* partials);
 void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, int m, vd_float4* p, vd_float4* s,
                  vd_float4* x, vd_float4* r, vd_float4* u, float* partials);
 void PcgScalars(const float* partials, int groups, int mode, float tolerance, float* scal);
