@@ -147,13 +147,15 @@ Status DeviceSolver::SetupPoints(const VdVolume& vol, const DeviceActiveSet& act
   active_ = &active;
   m_ = active.count;
   const size_t m = std::max<size_t>(m_, 1);
-  for (auto* b : {&x_, &rot_, &rest_, &b_, &r_, &u_, &w_, &p_, &s_, &data_rhs_}) VD_RETURN_IF_ERROR(ctx.Reserve(b, m));
+  for (auto* b : {&x_, &rot_, &rest_, &r_, &u_, &w_, &p_, &s_, &data_rhs_}) VD_RETURN_IF_ERROR(ctx.Reserve(b, m));
   VD_RETURN_IF_ERROR(ctx.Reserve(&diag_inv_, m));
   VD_RETURN_IF_ERROR(ctx.Reserve(&edge_w_, 6 * m));
   if (cache_btb_) {
     VD_RETURN_IF_ERROR(ctx.Reserve(&moments_, VD_CELL_MOMENT_FLOATS * m));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_, VD_BTB_FLOATS * m));
     VD_RETURN_IF_ERROR(ctx.Reserve(&btb_nbr_, VD_BTB_BLOCKS * m));
+  } else {
+    VD_RETURN_IF_ERROR(ctx.Reserve(&b_, m));  // the cached path's start never stores b
   }
   return ocl::RestPositions(ctx, m_, active.list, vol_, rest_);
 }
