@@ -1,5 +1,12 @@
 #include "shared/solver.h"
 
+/* The active set on its lattice (shared/solver.h VdActive): these five arguments, in this order, on
+ * every kernel that names points by their place (the host's ocl::ActiveArgs). */
+#define VD_ACTIVE_ARGS                                                                                  \
+  VdLattice lat, __global const int *lat_nbr, __global const uint *slot_keys, __global const int *list, \
+      __global const int *compact
+#define VD_ACTIVE vd_active(lat, lat_nbr, slot_keys, list, compact)
+
 /* Copies the deformation of the active points into compact arrays (x: position, rot: quaternion). */
 __kernel void vd_solver_gather_state(__global const int* list, __global const float4* def_pos,
                                      __global const float4* def_rot, __global float4* x, __global float4* rot,
@@ -32,14 +39,17 @@ __kernel void vd_constraint_count(__global const VdCorrespondence* corr, __globa
   if (kc >= 0) atomic_inc(&counts[kc]);
 }
 
+/* Also writes each sorted constraint's cell (the compact index of its first corner). */
 __kernel void vd_constraint_scatter(__global const VdCorrespondence* corr, __global const int* cell_of,
                                     __global const uint* cell_start, __global uint* cursor,
-                                    __global VdCorrespondence* sorted, int vd_items) {
+                                    __global VdCorrespondence* sorted, __global int* sorted_cell, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
   int kc = cell_of[i];
   if (kc < 0) return;
-  sorted[cell_start[kc] + atomic_inc(&cursor[kc])] = corr[i];
+  uint c = cell_start[kc] + atomic_inc(&cursor[kc]);
+  sorted[c] = corr[i];
+  sorted_cell[c] = kc;
 }
 
 __kernel void vd_constraint_targets(__global const VdCorrespondence* cons, __global float* targets, int vd_items) {
@@ -48,63 +58,59 @@ __kernel void vd_constraint_targets(__global const VdCorrespondence* cons, __glo
   targets[c] = vd_constraint_target(cons[c]);
 }
 
-__kernel void vd_constraint_residuals(__global const VdCorrespondence* cons, __global const int* compact, VdVolume vol,
-                                      __global const float4* d, __global float* r, int vd_items) {
+__kernel void vd_constraint_residuals(__global const VdCorrespondence* cons, __global const int* sorted_cell,
+                                      VD_ACTIVE_ARGS, __global const float4* d, __global float* r, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int c = get_global_id(0);
-  r[c] = vd_constraint_apply(cons[c], compact, vol, d);
+  r[c] = vd_constraint_apply(cons[c], sorted_cell[c], VD_ACTIVE, d);
 }
 
 /* Once per solve: the constraint-only part of b and the preconditioner. */
-__kernel void vd_system_data_diag_kernel(__global const int* list, __global const int* compact, VdVolume vol,
-                                         __global const int* neighbours, __global const float* edge_w,
+__kernel void vd_system_data_diag_kernel(VD_ACTIVE_ARGS, __global const int* neighbours, __global const float* edge_w,
                                          __global const VdCorrespondence* cons, __global const uint* cell_start,
                                          __global const float* targets, VdSolverWeights w, __global float4* data_rhs,
                                          __global VdMat3* diag_inv, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   VdMat3 inv;
-  data_rhs[k] = vd_system_data_diag(k, list, compact, vol, neighbours, edge_w, cons, cell_start, targets, w, &inv);
+  data_rhs[k] = vd_system_data_diag(k, VD_ACTIVE, neighbours, edge_w, cons, cell_start, targets, w, &inv);
   diag_inv[k] = inv;
 }
 
 /* Every position step: b from the current rotations. */
-__kernel void vd_system_rhs_kernel(__global const int* list, VdVolume vol, __global const int* neighbours,
-                                   __global const float* edge_w, __global const float4* rot,
-                                   __global const float4* data_rhs, __global const float4* x_prev, VdSolverWeights w,
-                                   __global float4* b, int vd_items) {
+__kernel void vd_system_rhs_kernel(float spacing, __global const int* neighbours, __global const float* edge_w,
+                                   __global const float4* rot, __global const float4* data_rhs,
+                                   __global const float4* x_prev, VdSolverWeights w, __global float4* b, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
-  b[k] = vd_system_rhs(k, list, vol, neighbours, edge_w, rot, data_rhs, x_prev, w);
+  b[k] = vd_system_rhs(k, spacing, neighbours, edge_w, rot, data_rhs, x_prev, w);
 }
 
-__kernel void vd_system_apply_kernel(__global const int* list, __global const int* compact, VdVolume vol,
-                                     __global const int* neighbours, __global const float* edge_w,
+__kernel void vd_system_apply_kernel(VD_ACTIVE_ARGS, __global const int* neighbours, __global const float* edge_w,
                                      __global const VdCorrespondence* cons, __global const uint* cell_start,
                                      __global const float* r, __global const float4* d, VdSolverWeights w,
                                      __global float4* q, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
-  q[k] = vd_system_apply(k, list, compact, vol, neighbours, edge_w, cons, cell_start, r, d, w);
+  q[k] = vd_system_apply(k, VD_ACTIVE, neighbours, edge_w, cons, cell_start, r, d, w);
 }
 
 /* Cached B^T B: built once per solve (moments per cell, then per point), applied every PCG
  * iteration. vd_cell_moments_kernel: one item per active point, as the first corner of a cell. */
-__kernel void vd_cell_moments_kernel(__global const int* list, VdVolume vol, __global const VdCorrespondence* cons,
+__kernel void vd_cell_moments_kernel(VD_ACTIVE_ARGS, __global const VdCorrespondence* cons,
                                      __global const uint* cell_start, __global float* moments, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
-  vd_cell_moments(get_global_id(0), list, vol, cons, cell_start, moments);
+  vd_cell_moments(get_global_id(0), VD_ACTIVE, cons, cell_start, moments);
 }
 
-__kernel void vd_btb_assemble_kernel(__global const int* list, __global const int* compact, VdVolume vol,
-                                     __global const int* neighbours, __global const float* edge_w,
+__kernel void vd_btb_assemble_kernel(VD_ACTIVE_ARGS, __global const int* neighbours, __global const float* edge_w,
                                      __global const float* moments, VdSolverWeights w, __global const float4* x0,
                                      int shift, __global float* blocks, __global int* nbr, __global float4* data_rhs,
                                      __global VdMat3* diag_inv, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int k = get_global_id(0);
   VdMat3 inv;
-  data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, moments, w, x0, shift, blocks, nbr, &inv);
+  data_rhs[k] = vd_btb_assemble(k, VD_ACTIVE, neighbours, edge_w, moments, w, x0, shift, blocks, nbr, &inv);
   diag_inv[k] = inv;
 }
 
@@ -202,15 +208,14 @@ __kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_d
 
 /* The start of a position step (vd_pcg_start), with the group sums of b.b. */
 __kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_start_kernel(
-    __global const int* list, VdVolume vol, __global const int* neighbours, __global const float* edge_w,
-    __global const float4* rot, __global const float4* data_rhs, VdSolverWeights w, __global const float* blocks,
-    __global const int* nbr, __global const VdMat3* diag_inv, __global const float4* x, __global float4* r,
-    __global float4* u, __global float* partials, int vd_items) {
+    float spacing, __global const int* neighbours, __global const float* edge_w, __global const float4* rot,
+    __global const float4* data_rhs, VdSolverWeights w, __global const float* blocks, __global const int* nbr,
+    __global const VdMat3* diag_inv, __global const float4* x, __global float4* r, __global float4* u,
+    __global float* partials, int vd_items) {
   __local float buf[VD_PCG_GROUP];
   int k = get_global_id(0);
   float bb = 0.0f;
-  if (k < vd_items)
-    bb = vd_pcg_start(k, list, vol, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u);
+  if (k < vd_items) bb = vd_pcg_start(k, spacing, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u);
   vd_pcg_group_sums(buf, &bb, 1, partials);
 }
 
@@ -227,35 +232,31 @@ __kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_c
 }
 
 /* Energy partial sums: dense term per chunk of constraints, ARAP per chunk of points. */
-__kernel void vd_energy_dense_partial(__global const VdCorrespondence* cons, int n, int chunk,
-                                      __global const int* compact, VdVolume vol, __global const float4* x,
-                                      __global float* partials, int vd_items) {
+__kernel void vd_energy_dense_partial(__global const VdCorrespondence* cons, __global const int* sorted_cell, int n,
+                                      int chunk, VD_ACTIVE_ARGS, __global const float4* x, __global float* partials,
+                                      int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int g = get_global_id(0);
   float s = 0.0f;
-  for (int c = g * chunk; c < min(n, (g + 1) * chunk); ++c) s += vd_constraint_energy(cons[c], compact, vol, x);
+  for (int c = g * chunk; c < min(n, (g + 1) * chunk); ++c)
+    s += vd_constraint_energy(cons[c], sorted_cell[c], VD_ACTIVE, x);
   partials[g] = s;
 }
 
-__kernel void vd_energy_arap_partial(__global const int* list, __global const int* neighbours,
-                                     __global const float* edge_w, VdVolume vol, __global const float4* x,
-                                     __global const float4* rot, int n, int chunk, __global float* partials,
-                                     int vd_items) {
+__kernel void vd_energy_arap_partial(__global const int* neighbours, __global const float* edge_w, float spacing,
+                                     __global const float4* x, __global const float4* rot, int n, int chunk,
+                                     __global float* partials, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int g = get_global_id(0);
   float s = 0.0f;
-  for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k)
-    s += vd_arap_energy(k, list, neighbours, edge_w, vol, x, rot);
+  for (int k = g * chunk; k < min(n, (g + 1) * chunk); ++k) s += vd_arap_energy(k, neighbours, edge_w, spacing, x, rot);
   partials[g] = s;
 }
 
 /* Rest (undeformed) positions of the active points, for the rotation step. */
-__kernel void vd_solver_rest(__global const int* list, VdVolume vol, __global float4* t_hat, int vd_items) {
+__kernel void vd_solver_rest(VD_ACTIVE_ARGS, __global float4* t_hat, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
-  int k = get_global_id(0);
-  int x, y, z;
-  vd_grid_coords(list[k], vol, &x, &y, &z);
-  t_hat[k] = vd_rest_position(vol, x, y, z);
+  t_hat[get_global_id(0)] = vd_active_rest(VD_ACTIVE, get_global_id(0));
 }
 
 /* Adaptive rigidity: the ARAP weights of each active point's six edges from the field's strain. */

@@ -19,4 +19,5 @@ __kernel void vd_type_sizes(__global int* out, int vd_items) {
   out[9] = (int)sizeof(VdMatchBest);
   out[10] = (int)sizeof(VdMat3);
   out[11] = (int)sizeof(VdFusionParams);
+  out[12] = (int)sizeof(VdLattice);
 }

@@ -47,6 +47,19 @@ vd_float4 Rest(VdVolume vol, int i) {
   return vd_rest_position(vol, x, y, z);
 }
 
+// An active set of a dense lattice, as the shared functions take it.
+VdActive Dense(VdLattice l, const cpu::ActiveSet& a) {
+  return vd_active(l, nullptr, nullptr, a.list.data(), a.compact.data());
+}
+
+// Each constraint's cell on a dense grid (the compact index of its first corner, -1: unusable).
+std::vector<int32_t> CellsOf(const std::vector<VdCorrespondence>& cons, const std::vector<int32_t>& compact,
+                             VdVolume vol) {
+  std::vector<int32_t> cells(cons.size());
+  for (size_t c = 0; c < cons.size(); ++c) cells[c] = vd_constraint_cell(cons[c], compact.data(), vol);
+  return cells;
+}
+
 TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
@@ -97,11 +110,16 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
   auto d_cons = ToDevice(ctx, cons);
   const int nc = int(cons.size());
 
+  const VdLattice fl = vd_lattice_dense(f.vol);
+  const DeviceLattice dfl = DeviceLattice::Dense(f.vol);
+  const std::vector<int32_t> cells = CellsOf(cons, f.fine.compact, f.vol);
+  auto d_cells = ToDevice(ctx, cells);
   for (int l = 1; l <= 2; ++l) {
     const int s = 1 << l;
-    const VdVolume cv = h.level_volume(l);
-    EXPECT_EQ(cv.voxel_size, f.vol.voxel_size * s);
-    const cpu::ActiveSet ref = cpu::BuildLevel(f.fine.list, f.vol, s, cv);
+    const DeviceLattice dcl = h.level_lattice(l);
+    const VdLattice cv = dcl.lat;
+    EXPECT_EQ(cv.spacing, f.vol.voxel_size * s);
+    const cpu::ActiveSet ref = cpu::BuildLevel(fl, nullptr, f.fine.list, s, cv, dcl.Entries(0));
     const DeviceActiveSet& got = h.level_active(l);
     ASSERT_EQ(got.count, ref.list.size()) << "level " << l;
     EXPECT_EQ(FromDevice(ctx, got.list, got.count), ref.list);
@@ -113,10 +131,9 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
     auto d_x0 = ctx->Alloc<vd_float4>(got.count);
     auto d_rot_c = ctx->Alloc<vd_float4>(got.count);
     ASSERT_TRUE(d_x0.ok() && d_rot_c.ok());
-    ASSERT_TRUE(ocl::RestrictState(*ctx, got.count, got.list, cv, s, fine.compact, f.vol, d_x_f, d_rot_f, *d_x0,
-                                   *d_rot_c).ok());
+    ASSERT_TRUE(ocl::RestrictState(*ctx, dfl, fine, dcl, got, s, d_x_f, d_rot_f, *d_x0, *d_rot_c).ok());
     std::vector<vd_float4> x0_ref(got.count), rot_ref(got.count);
-    cpu::LevelRestrict(ref, cv, s, f.fine.compact.data(), f.vol, x_f.data(), rot_f.data(), x0_ref.data(),
+    cpu::LevelRestrict(Dense(cv, ref), int(got.count), s, Dense(fl, f.fine), x_f.data(), rot_f.data(), x0_ref.data(),
                        rot_ref.data());
     const auto x0 = FromDevice(ctx, *d_x0, got.count);
     EXPECT_TRUE(AllClose(Flatten(x0), Flatten(x0_ref), 1e-6f, 1e-6f));
@@ -134,9 +151,9 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
     auto d_cc = ctx->Alloc<VdCorrespondence>(nc);
     ASSERT_TRUE(d_cc.ok());
     ASSERT_TRUE(
-        ocl::kLevelConstraints(*ctx, nc, d_cons, fine.compact, f.vol, d_x_f, s, got.compact, cv, *d_x0, *d_cc).ok());
+        ocl::RestrictConstraints(*ctx, dfl, fine, dcl, got, s, size_t(nc), d_cons, d_cells, d_x_f, *d_x0, *d_cc).ok());
     std::vector<VdCorrespondence> cc_ref(nc);
-    cpu::LevelConstraints(cons.data(), nc, f.fine.compact.data(), f.vol, x_f.data(), s, ref.compact.data(), cv,
+    cpu::LevelConstraints(cons.data(), cells.data(), nc, Dense(fl, f.fine), x_f.data(), s, Dense(cv, ref),
                           x0_ref.data(), cc_ref.data());
     const auto cc = FromDevice(ctx, *d_cc, nc);
     int kept = 0;
@@ -156,10 +173,10 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
     for (size_t k = 0; k < got.count; ++k) x_c[k] = x0_ref[k] + VD_F4(0.001f * float(k % 11), -0.0005f * float(k % 5), 0.002f, 0.f);
     auto d_x_c = ToDevice(ctx, x_c);
     auto d_out = ToDevice(ctx, x_f);
-    ASSERT_TRUE(
-        ocl::kLevelProlongate(*ctx, fine.count, fine.list, f.vol, s, got.compact, cv, d_x_c, *d_x0, d_out).ok());
+    ASSERT_TRUE(ocl::ProlongateIncrement(*ctx, dfl, fine, dcl, got, s, d_x_c, *d_x0, d_out).ok());
     std::vector<vd_float4> out_ref = x_f;
-    cpu::LevelProlongate(f.fine.list, f.vol, s, ref.compact.data(), cv, x_c.data(), x0_ref.data(), out_ref.data());
+    cpu::LevelProlongate(Dense(fl, f.fine), int(fine.count), s, Dense(cv, ref), x_c.data(), x0_ref.data(),
+                         out_ref.data());
     EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_out, fine.count)), Flatten(out_ref), 1e-6f, 1e-6f));
   }
 }
@@ -173,14 +190,15 @@ TEST(HierarchyParityTest, TranslatedFieldIsExact) {
   std::vector<vd_float4> x_f(f.fine.list.size());
   for (size_t k = 0; k < x_f.size(); ++k) x_f[k] = Rest(f.vol, f.fine.list[k]) + d;
   const int s = 4;
-  const VdVolume cv = LevelVolume(f.vol, s);
-  const cpu::ActiveSet lvl = cpu::BuildLevel(f.fine.list, f.vol, s, cv);
+  const VdLattice fl = vd_lattice_dense(f.vol), cv = vd_lattice_level(fl, s);
+  const cpu::ActiveSet lvl = cpu::BuildLevel(fl, nullptr, f.fine.list, s, cv, size_t(vd_lattice_brick_points(cv)));
   std::vector<vd_float4> x0(lvl.list.size()), rot_c(lvl.list.size());
   // One rotation everywhere (half of the points store it as -q): every coarse point gets it.
   const vd_float4 q = VD_F4(0.36f, 0.48f, 0.f, 0.8f);
   std::vector<vd_float4> rot_f(f.fine.list.size());
   for (size_t k = 0; k < rot_f.size(); ++k) rot_f[k] = k % 2 ? -q : q;
-  cpu::LevelRestrict(lvl, cv, s, f.fine.compact.data(), f.vol, x_f.data(), rot_f.data(), x0.data(), rot_c.data());
+  cpu::LevelRestrict(Dense(cv, lvl), int(lvl.list.size()), s, Dense(fl, f.fine), x_f.data(), rot_f.data(), x0.data(),
+                     rot_c.data());
   for (const vd_float4& r : rot_c) {
     const float sg = r.w < 0.f ? -1.f : 1.f;
     ASSERT_NEAR(sg * r.x, q.x, 1e-6f);
@@ -188,7 +206,7 @@ TEST(HierarchyParityTest, TranslatedFieldIsExact) {
     ASSERT_NEAR(sg * r.w, q.w, 1e-6f);
   }
   for (size_t k = 0; k < x0.size(); ++k) {
-    const vd_float4 want = Rest(cv, lvl.list[k]) + d;
+    const vd_float4 want = vd_active_rest(Dense(cv, lvl), int(k)) + d;
     ASSERT_NEAR(x0[k].x, want.x, 1e-6f);
     ASSERT_NEAR(x0[k].y, want.y, 1e-6f);
     ASSERT_NEAR(x0[k].z, want.z, 1e-6f);
@@ -203,8 +221,9 @@ TEST(HierarchyParityTest, TranslatedFieldIsExact) {
     cons.push_back(c);
   }
   std::vector<VdCorrespondence> cc(cons.size());
-  cpu::LevelConstraints(cons.data(), int(cons.size()), f.fine.compact.data(), f.vol, x_f.data(), s,
-                        lvl.compact.data(), cv, x0.data(), cc.data());
+  const std::vector<int32_t> cells = CellsOf(cons, f.fine.compact, f.vol);
+  cpu::LevelConstraints(cons.data(), cells.data(), int(cons.size()), Dense(fl, f.fine), x_f.data(), s, Dense(cv, lvl),
+                        x0.data(), cc.data());
   for (size_t c = 0; c < cc.size(); ++c) {
     ASSERT_GT(cc[c].canonical.w, 0.f);
     ASSERT_NEAR(cc[c].target.x, 0.1f, 2e-6f);
@@ -215,7 +234,8 @@ TEST(HierarchyParityTest, TranslatedFieldIsExact) {
   std::vector<vd_float4> x_c = x0;
   for (auto& p : x_c) p = p + VD_F4(0.002f, 0.003f, -0.001f, 0.f);
   std::vector<vd_float4> out = x_f;
-  cpu::LevelProlongate(f.fine.list, f.vol, s, lvl.compact.data(), cv, x_c.data(), x0.data(), out.data());
+  cpu::LevelProlongate(Dense(fl, f.fine), int(f.fine.list.size()), s, Dense(cv, lvl), x_c.data(), x0.data(),
+                       out.data());
   for (size_t k = 0; k < out.size(); ++k) {
     ASSERT_NEAR(out[k].x - x_f[k].x, 0.002f, 1e-6f);
     ASSERT_NEAR(out[k].y - x_f[k].y, 0.003f, 1e-6f);
@@ -225,8 +245,14 @@ TEST(HierarchyParityTest, TranslatedFieldIsExact) {
 
 // Constraints sorted by the compact index of their cell's first corner (the fine solver's
 // counting sort, order within a cell aside), and the cells' ranges (m + 1 entries).
-void SortByCell(const std::vector<VdCorrespondence>& raw, const std::vector<int32_t>& compact, VdVolume vol, size_t m,
+void SortByCell(const std::vector<VdCorrespondence>& raw, const std::vector<int32_t>& compact, VdLattice lat, size_t m,
                 std::vector<VdCorrespondence>* sorted, std::vector<vd_uint>* cell_start) {
+  VdVolume vol{};
+  vol.origin = lat.origin;
+  vol.dim_x = lat.dim_x;
+  vol.dim_y = lat.dim_y;
+  vol.dim_z = lat.dim_z;
+  vol.voxel_size = lat.spacing;
   std::vector<std::vector<VdCorrespondence>> by_cell(m);
   for (const auto& c : raw) {
     const int kc = vd_constraint_cell(c, compact.data(), vol);
@@ -247,7 +273,7 @@ struct CoarseSystem {
   std::vector<VdMat3> inv;
 };
 
-CoarseSystem Assemble(const cpu::ActiveSet& lvl, VdVolume cv, const std::vector<float>& moments, VdSolverWeights w,
+CoarseSystem Assemble(const cpu::ActiveSet& lvl, VdLattice cv, const std::vector<float>& moments, VdSolverWeights w,
                       const vd_float4* x0) {
   const int n = int(lvl.list.size());
   CoarseSystem sys;
@@ -256,8 +282,8 @@ CoarseSystem Assemble(const cpu::ActiveSet& lvl, VdVolume cv, const std::vector<
   sys.rhs.resize(n);
   sys.inv.resize(n);
   const std::vector<float> ones(6 * size_t(n), 1.f);
-  cpu::BtbAssemble(lvl.list.data(), lvl.compact.data(), cv, lvl.neighbours.data(), ones.data(), moments.data(), w, x0,
-                   n, sys.blocks.data(), sys.nbr.data(), sys.rhs.data(), sys.inv.data());
+  cpu::BtbAssemble(Dense(cv, lvl), lvl.neighbours.data(), ones.data(), moments.data(), w, x0, n, sys.blocks.data(),
+                   sys.nbr.data(), sys.rhs.data(), sys.inv.data());
   return sys;
 }
 
@@ -293,39 +319,46 @@ TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpre
     }
   std::vector<VdCorrespondence> cons;
   std::vector<vd_uint> cell_start;
-  SortByCell(raw, f.fine.compact, f.vol, m, &cons, &cell_start);
+  const VdLattice fl = vd_lattice_dense(f.vol);
+  SortByCell(raw, f.fine.compact, fl, m, &cons, &cell_start);
+  DeviceActiveSet fine;
+  fine.count = m;
+  fine.list = ToDevice(ctx, f.fine.list);
+  fine.compact = ToDevice(ctx, f.fine.compact);
+  const DeviceLattice dfl = DeviceLattice::Dense(f.vol);
   ASSERT_GT(cons.size(), 3000u);
   VdSolverWeights w{};
   w.w_dense = 1.3f;
   w.w_reg = 2.f;
   w.damping = 2e-4f;
 
-  auto d_compact_f = ToDevice(ctx, f.fine.compact);
   auto d_cons = ToDevice(ctx, cons);
   auto d_start = ToDevice(ctx, cell_start);
   auto d_x_f = ToDevice(ctx, x_f);
   for (int s : {2, 4}) {
-    const VdVolume cv = LevelVolume(f.vol, s);
-    const cpu::ActiveSet lvl = cpu::BuildLevel(f.fine.list, f.vol, s, cv);
+    const DeviceLattice dcl = dfl.Level(s);
+    const VdLattice cv = dcl.lat;
+    const cpu::ActiveSet lvl = cpu::BuildLevel(fl, nullptr, f.fine.list, s, cv, dcl.Entries(0));
     const int n = int(lvl.list.size());
     std::vector<vd_float4> x0(n), rot0(n);
-    cpu::LevelRestrict(lvl, cv, s, f.fine.compact.data(), f.vol, x_f.data(), rot_f.data(), x0.data(), rot0.data());
+    cpu::LevelRestrict(Dense(cv, lvl), n, s, Dense(fl, f.fine), x_f.data(), rot_f.data(), x0.data(), rot0.data());
+    DeviceActiveSet coarse;
+    coarse.count = size_t(n);
+    coarse.list = ToDevice(ctx, lvl.list);
+    coarse.compact = ToDevice(ctx, lvl.compact);
+    coarse.neighbours = ToDevice(ctx, lvl.neighbours);
 
     // Device against CPU: the moments, then the shifted right-hand side.
-    auto d_list_c = ToDevice(ctx, lvl.list);
     auto d_moments = ctx->Alloc<float>(size_t(VD_CELL_MOMENT_FLOATS) * n);
     ASSERT_TRUE(d_moments.ok());
-    ASSERT_TRUE(
-        ocl::LevelMoments(*ctx, n, d_list_c, cv, s, d_compact_f, f.vol, d_cons, d_start, d_x_f, *d_moments).ok());
+    ASSERT_TRUE(ocl::LevelMoments(*ctx, dfl, fine, dcl, coarse, s, d_cons, d_start, d_x_f, *d_moments).ok());
     std::vector<float> moments(size_t(VD_CELL_MOMENT_FLOATS) * n, -1.f);
-    cpu::LevelMoments(lvl.list.data(), cv, s, f.fine.compact.data(), f.vol, cons.data(), cell_start.data(), x_f.data(),
-                      n, moments.data());
+    cpu::LevelMoments(Dense(cv, lvl), s, Dense(fl, f.fine), cons.data(), cell_start.data(), x_f.data(), n,
+                      moments.data());
     EXPECT_TRUE(AllClose(FromDevice(ctx, *d_moments, moments.size()), moments, 1e-6f, 1e-5f)) << "s = " << s;
     // The assembly with the x0 shift, on the device against the CPU.
     const CoarseSystem got = Assemble(lvl, cv, moments, w, x0.data());
     {
-      auto d_nb = ToDevice(ctx, lvl.neighbours);
-      auto d_compact_c = ToDevice(ctx, lvl.compact);
       auto d_ew = ToDevice(ctx, std::vector<float>(6 * size_t(n), 1.f));
       auto d_x0 = ToDevice(ctx, x0);
       auto d_blocks = ctx->Alloc<float>(size_t(VD_BTB_FLOATS) * n);
@@ -333,9 +366,8 @@ TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpre
       auto d_rhs = ctx->Alloc<vd_float4>(n);
       auto d_inv = ctx->Alloc<VdMat3>(n);
       ASSERT_TRUE(d_blocks.ok() && d_nbr.ok() && d_rhs.ok() && d_inv.ok());
-      ASSERT_TRUE(ocl::AssembleBtb(*ctx, n, d_list_c, d_compact_c, cv, d_nb, d_ew, *d_moments, w, d_x0, *d_blocks,
-                                   *d_nbr, *d_rhs, *d_inv)
-                      .ok());
+      ASSERT_TRUE(
+          ocl::AssembleBtb(*ctx, dcl, coarse, d_ew, *d_moments, w, d_x0, *d_blocks, *d_nbr, *d_rhs, *d_inv).ok());
       EXPECT_EQ(FromDevice(ctx, *d_nbr, got.nbr.size()), got.nbr);
       EXPECT_TRUE(AllClose(FromDevice(ctx, *d_blocks, got.blocks.size()), got.blocks, 1e-6f, 1e-5f)) << "s = " << s;
       EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, *d_rhs, n)), Flatten(got.rhs), 1e-6f, 1e-5f)) << "s = " << s;
@@ -343,13 +375,14 @@ TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpre
 
     // The long way: re-expressed, sorted by coarse cell, moments, assembled.
     std::vector<VdCorrespondence> cc(cons.size()), cc_sorted;
-    cpu::LevelConstraints(cons.data(), int(cons.size()), f.fine.compact.data(), f.vol, x_f.data(), s,
-                          lvl.compact.data(), cv, x0.data(), cc.data());
+    const std::vector<int32_t> cells = CellsOf(cons, f.fine.compact, f.vol);
+    cpu::LevelConstraints(cons.data(), cells.data(), int(cons.size()), Dense(fl, f.fine), x_f.data(), s, Dense(cv, lvl),
+                          x0.data(), cc.data());
     std::vector<vd_uint> cc_start;
     SortByCell(cc, lvl.compact, cv, n, &cc_sorted, &cc_start);
     ASSERT_EQ(cc_sorted.size(), cons.size()) << "every fine constraint has its coarse corners";
     std::vector<float> want_moments(size_t(VD_CELL_MOMENT_FLOATS) * n, -1.f);
-    cpu::CellMoments(lvl.list.data(), cv, cc_sorted.data(), cc_start.data(), n, want_moments.data());
+    cpu::CellMoments(Dense(cv, lvl), cc_sorted.data(), cc_start.data(), n, want_moments.data());
     const CoarseSystem want = Assemble(lvl, cv, want_moments, w, nullptr);
     EXPECT_EQ(got.nbr, want.nbr);
     double largest_block = 0, worst_block = 0, largest_rhs = 0, worst_rhs = 0, worst_inv = 0;

@@ -147,9 +147,11 @@ struct DeviceSystem {
 StatusOr<DeviceSystem> BuildOnDevice(ocl::Context* ctx, const Problem& p, const std::vector<float>& ew,
                                      VdSolverWeights w) {
   const size_t m = p.active.list.size();
-  auto d_list = ToDevice(ctx, p.active.list);
-  auto d_compact = ToDevice(ctx, p.active.compact);
-  auto d_nb = ToDevice(ctx, p.active.neighbours);
+  DeviceActiveSet a;
+  a.count = m;
+  a.list = ToDevice(ctx, p.active.list);
+  a.compact = ToDevice(ctx, p.active.compact);
+  a.neighbours = ToDevice(ctx, p.active.neighbours);
   auto d_ew = ToDevice(ctx, ew);
   auto d_cons = ToDevice(ctx, p.cons);
   auto d_start = ToDevice(ctx, p.cell_start);
@@ -159,8 +161,8 @@ StatusOr<DeviceSystem> BuildOnDevice(ocl::Context* ctx, const Problem& p, const 
   VD_ASSIGN_OR_RETURN(sys.nbr, ctx->Alloc<int32_t>(size_t(VD_BTB_BLOCKS) * m));
   VD_ASSIGN_OR_RETURN(sys.rhs, ctx->Alloc<vd_float4>(m));
   VD_ASSIGN_OR_RETURN(sys.inv, ctx->Alloc<VdMat3>(m));
-  VD_RETURN_IF_ERROR(ocl::BuildBtb(*ctx, m, d_list, d_compact, p.vol, d_nb, d_ew, d_cons, d_start, w, moments,
-                                   sys.blocks, sys.nbr, sys.rhs, sys.inv));
+  VD_RETURN_IF_ERROR(ocl::BuildBtb(*ctx, DeviceLattice::Dense(p.vol), a, d_ew, d_cons, d_start, w, moments, sys.blocks,
+                                   sys.nbr, sys.rhs, sys.inv));
   return sys;
 }
 
@@ -189,9 +191,11 @@ TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {
   std::vector<int> nbr_ref(size_t(VD_BTB_BLOCKS) * m);
   std::vector<vd_float4> rhs_ref(m);
   std::vector<VdMat3> inv_ref(m);
-  cpu::CellMoments(p.active.list.data(), p.vol, p.cons.data(), p.cell_start.data(), m, moments.data());
-  cpu::BtbAssemble(p.active.list.data(), p.active.compact.data(), p.vol, p.active.neighbours.data(), ew.data(),
-                   moments.data(), w, nullptr, m, blocks_ref.data(), nbr_ref.data(), rhs_ref.data(), inv_ref.data());
+  const VdActive act =
+      vd_active(vd_lattice_dense(p.vol), nullptr, nullptr, p.active.list.data(), p.active.compact.data());
+  cpu::CellMoments(act, p.cons.data(), p.cell_start.data(), m, moments.data());
+  cpu::BtbAssemble(act, p.active.neighbours.data(), ew.data(), moments.data(), w, nullptr, m, blocks_ref.data(),
+                   nbr_ref.data(), rhs_ref.data(), inv_ref.data());
   EXPECT_EQ(nbr, nbr_ref);
   EXPECT_TRUE(AllClose(blocks, blocks_ref, 1e-6f, 1e-5f));
   EXPECT_TRUE(AllClose(Flatten(rhs), Flatten(rhs_ref), 1e-7f, 1e-5f));
@@ -569,7 +573,7 @@ TEST(SolverParityTest, PcgStartMatchesCpuAndTheSeparatePasses) {
     const vd_float4 q = VD_F4(0.1f * uni(rng), 0.1f * uni(rng), 0.1f * uni(rng), 1.f);
     rot[k] = q * (1.f / std::sqrt(vd_dot3(q, q) + q.w * q.w));
   }
-  auto d_list = ToDevice(ctx, p.active.list), d_nb = ToDevice(ctx, p.active.neighbours);
+  auto d_nb = ToDevice(ctx, p.active.neighbours);
   auto d_ew = ToDevice(ctx, ew);
   auto d_x = ToDevice(ctx, x), d_rot = ToDevice(ctx, rot);
   auto d_r = ctx->Alloc<vd_float4>(m), d_u = ctx->Alloc<vd_float4>(m), d_b = ctx->Alloc<vd_float4>(m),
@@ -577,11 +581,11 @@ TEST(SolverParityTest, PcgStartMatchesCpuAndTheSeparatePasses) {
   const int groups = int(ocl::PcgGroups(size_t(m)));
   auto d_part = ctx->Alloc<float>(groups);
   ASSERT_TRUE(d_r.ok() && d_u.ok() && d_b.ok() && d_r2.ok() && d_u2.ok() && d_part.ok());
-  ASSERT_TRUE(ocl::PcgStart(*ctx, m, d_list, p.vol, d_nb, d_ew, d_rot, sys->rhs, w, sys->blocks, sys->nbr, sys->inv,
+  ASSERT_TRUE(ocl::PcgStart(*ctx, m, p.vol.voxel_size, d_nb, d_ew, d_rot, sys->rhs, w, sys->blocks, sys->nbr, sys->inv,
                             d_x, *d_r, *d_u, *d_part)
                   .ok());
   // The separate passes.
-  ASSERT_TRUE(ocl::SystemRhs(*ctx, m, d_list, p.vol, d_nb, d_ew, d_rot, sys->rhs, d_x, w, *d_b).ok());
+  ASSERT_TRUE(ocl::SystemRhs(*ctx, m, p.vol.voxel_size, d_nb, d_ew, d_rot, sys->rhs, d_x, w, *d_b).ok());
   ASSERT_TRUE(ocl::ApplySystemCached(*ctx, m, sys->blocks, sys->nbr, d_x, *d_r2).ok());
   ASSERT_TRUE(ocl::SubFrom(*ctx, m, *d_b, *d_r2).ok());
   ASSERT_TRUE(ocl::Precondition(*ctx, m, sys->inv, *d_r2, *d_u2).ok());
@@ -604,8 +608,8 @@ TEST(SolverParityTest, PcgStartMatchesCpuAndTheSeparatePasses) {
   const auto rhs = FromDevice(ctx, sys->rhs, m);
   std::vector<vd_float4> r_cpu(m), u_cpu(m);
   std::vector<float> part_cpu(groups);
-  cpu::PcgStart(p.active.list.data(), p.vol, p.active.neighbours.data(), ew.data(), rot.data(), rhs.data(), w,
-                blocks.data(), nbr.data(), inv.data(), x.data(), m, r_cpu.data(), u_cpu.data(), part_cpu.data());
+  cpu::PcgStart(p.vol.voxel_size, p.active.neighbours.data(), ew.data(), rot.data(), rhs.data(), w, blocks.data(),
+                nbr.data(), inv.data(), x.data(), m, r_cpu.data(), u_cpu.data(), part_cpu.data());
   EXPECT_TRUE(AllClose(Flatten(r), Flatten(r_cpu), 1e-6f, 1e-5f));
   EXPECT_TRUE(AllClose(Flatten(u), Flatten(u_cpu), 1e-6f, 1e-5f));
   EXPECT_TRUE(AllClose(part, part_cpu, 1e-5f, 1e-5f));

@@ -20,7 +20,8 @@ TEST(TypesParityTest, SharedStructSizesMatchOnHostAndDevice) {
   const std::vector<int> host = {int(sizeof(VdCamera)),     int(sizeof(VdPose)),       int(sizeof(VdVolume)),
                                  int(sizeof(VdIcpParams)),  int(sizeof(vd_float4)),    int(sizeof(VdCorrespondence)),
                                  int(sizeof(VdCorrParams)), int(sizeof(VdLiftParams)), int(sizeof(VdSolverWeights)),
-                                 int(sizeof(VdMatchBest)),  int(sizeof(VdMat3)),       int(sizeof(VdFusionParams))};
+                                 int(sizeof(VdMatchBest)),  int(sizeof(VdMat3)),       int(sizeof(VdFusionParams)),
+                                 int(sizeof(VdLattice))};
   auto out = ctx->Alloc<int32_t>(host.size());
   ASSERT_TRUE(out.ok());
   ASSERT_TRUE(kTypeSizes(*ctx, 1, *out).ok());
@@ -28,6 +29,7 @@ TEST(TypesParityTest, SharedStructSizesMatchOnHostAndDevice) {
   for (size_t i = 0; i < host.size(); ++i) EXPECT_EQ(device[i], host[i]) << "struct #" << i;
   EXPECT_EQ(sizeof(VdCamera) % 16, 0u);
   EXPECT_EQ(sizeof(VdVolume) % 16, 0u);
+  EXPECT_EQ(sizeof(VdLattice) % 16, 0u);
 }
 
 TEST(TypesParityTest, UnknownKernelAndBadDeviceGiveClearErrors) {

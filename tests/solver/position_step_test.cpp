@@ -268,12 +268,14 @@ TEST(SolverGradientTest, ArapAndDataGradientsMatchCentralDifferences) {
   auto arap = [&](const std::vector<vd_float4>& x) {
     double e = 0;
     for (int k = 0; k < m; ++k)
-      e += vd_arap_energy(k, p.list.data(), p.neighbours.data(), uniform.data(), p.vol, x.data(), rot.data());
+      e += vd_arap_energy(k, p.neighbours.data(), uniform.data(), p.vol.voxel_size, x.data(), rot.data());
     return e;
   };
   auto dense = [&](const std::vector<vd_float4>& x) {
     double e = 0;
-    for (const auto& c : p.cons) e += vd_constraint_energy(c, p.compact.data(), p.vol, x.data());
+    const VdActive a = vd_active(vd_lattice_dense(p.vol), nullptr, nullptr, p.list.data(), p.compact.data());
+    for (const auto& c : p.cons)
+      e += vd_constraint_energy(c, vd_constraint_cell(c, p.compact.data(), p.vol), a, x.data());
     return e;
   };
   // Analytic gradients: dE_reg/dx_k = 2 sum_j [2 (x_k - x_j) - (R_k + R_j)(t^_k - t^_j)];

@@ -24,10 +24,12 @@ VD_INLINE vd_float4 vd_level_coords(float gx, float gy, float gz, int s) {
   return VD_F4(gx * inv, gy * inv, gz * inv, 0.0f);
 }
 
-/* Grid index of corner o of the coarse cell holding fine grid point (x, y, z). */
-VD_INLINE int vd_level_corner_index(int x, int y, int z, int s, VdVolume coarse, int o) {
-  int cx = vd_min_i(x / s, coarse.dim_x - 2), cy = vd_min_i(y / s, coarse.dim_y - 2), cz = vd_min_i(z / s, coarse.dim_z - 2);
-  return vd_grid_index(coarse, cx + (o & 1), cy + ((o >> 1) & 1), cz + ((o >> 2) & 1));
+/* Entry (in the coarse lattice) of corner o of the coarse cell holding fine point (slot, x, y, z),
+ * -1 where the coarse point's brick is not allocated. */
+VD_INLINE int vd_level_corner(VdLattice coarse, VD_GLOBAL const int* nbr, int s, int slot, int x, int y, int z, int o) {
+  int cx, cy, cz;
+  vd_lattice_coarse_cell(coarse, s, x, y, z, &cx, &cy, &cz);
+  return vd_lattice_entry(coarse, nbr, slot, cx + (o & 1), cy + ((o >> 1) & 1), cz + ((o >> 2) & 1));
 }
 
 /* x0 of coarse active point K (returned): its rest position plus the tent-weighted mean
@@ -36,30 +38,26 @@ VD_INLINE int vd_level_corner_index(int x, int y, int z, int s, VdVolume coarse,
  * The coarse rotation step then refines that (vd_procrustes_refine_lanes) instead of solving from
  * nothing by SVD: a coarse neighbourhood is a smoothed fine one, so its optimum is near the mean
  * fine rotation there, as a fine point's is near its last frame's. */
-VD_INLINE vd_float4 vd_level_restrict(int K, VD_GLOBAL const int* list_c, VdVolume coarse, int s,
-                                      VD_GLOBAL const int* compact_f, VdVolume fine, VD_GLOBAL const vd_float4* x_f,
+VD_INLINE vd_float4 vd_level_restrict(int K, VdActive coarse, int s, VdActive fine, VD_GLOBAL const vd_float4* x_f,
                                       VD_GLOBAL const vd_float4* rot_f, vd_float4* rot_c) {
-  int X, Y, Z;
-  vd_grid_coords(list_c[K], coarse, &X, &Y, &Z);
+  int slot, X, Y, Z, GX, GY, GZ;
+  vd_active_point(coarse, K, &slot, &X, &Y, &Z, &GX, &GY, &GZ);
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   vd_float4 qsum = VD_F4(0.0f, 0.0f, 0.0f, 0.0f), qref = VD_F4(0.0f, 0.0f, 0.0f, 1.0f);
   int found = 0;
   float wsum = 0.0f;
   float inv = 1.0f / (float)(s + 1);
   for (int dz = -s; dz <= s; ++dz) {
-    int z = s * Z + dz;
-    if (z < 0 || z >= fine.dim_z) continue;
     for (int dy = -s; dy <= s; ++dy) {
-      int y = s * Y + dy;
-      if (y < 0 || y >= fine.dim_y) continue;
       for (int dx = -s; dx <= s; ++dx) {
-        int x = s * X + dx;
-        if (x < 0 || x >= fine.dim_x) continue;
-        int kf = compact_f[vd_grid_index(fine, x, y, z)];
+        int kf = vd_lattice_compact(fine.lat, fine.nbr, fine.compact, slot, s * X + dx, s * Y + dy, s * Z + dz);
         if (kf < 0) continue;
         float w = (1.0f - (float)(dx < 0 ? -dx : dx) * inv) * (1.0f - (float)(dy < 0 ? -dy : dy) * inv) *
                   (1.0f - (float)(dz < 0 ? -dz : dz) * inv);
-        acc = acc + (x_f[kf] - vd_rest_position(fine, x, y, z)) * w;
+        vd_float4 rest = VD_F4(fine.lat.origin.x + fine.lat.spacing * (float)(s * GX + dx),
+                               fine.lat.origin.y + fine.lat.spacing * (float)(s * GY + dy),
+                               fine.lat.origin.z + fine.lat.spacing * (float)(s * GZ + dz), 0.0f);
+        acc = acc + (x_f[kf] - rest) * w;
         wsum += w;
         /* q and -q are one rotation: each is added on the side of the first one met. */
         vd_float4 q = rot_f[kf];
@@ -70,7 +68,7 @@ VD_INLINE vd_float4 vd_level_restrict(int K, VD_GLOBAL const int* list_c, VdVolu
       }
     }
   }
-  vd_float4 p = vd_rest_position(coarse, X, Y, Z);
+  vd_float4 p = vd_lattice_position(coarse.lat, coarse.slot_keys, slot, X, Y, Z);
   if (wsum > 0.0f) p = p + acc * (1.0f / wsum);
   p.w = 0.0f;
   float qn = sqrt(vd_dot3(qsum, qsum) + qsum.w * qsum.w);
@@ -78,23 +76,44 @@ VD_INLINE vd_float4 vd_level_restrict(int K, VD_GLOBAL const int* list_c, VdVolu
   return p;
 }
 
-/* Fine constraint c re-expressed on the coarse level (w = 0 when a corner is missing). */
-VD_INLINE VdCorrespondence vd_level_constraint(VdCorrespondence c, VD_GLOBAL const int* compact_f, VdVolume fine,
-                                               VD_GLOBAL const vd_float4* x_f, int s, VD_GLOBAL const int* compact_c,
-                                               VdVolume coarse, VD_GLOBAL const vd_float4* x0_c) {
+/* The coarse cell (spacing s) holding the fine cell whose first corner is fine active point kf:
+ * its 8 corners' coarse compact indices, and the trilinear weights there of fine global position
+ * g (coarse coordinates g / s). Returns 0 when a corner is not in the coarse M. */
+VD_INLINE int vd_level_cell(VdActive fine, int kf, vd_float4 g, int s, VdActive coarse, int* idx, float* alpha) {
+  int slot, x, y, z;
+  vd_lattice_point(fine.lat, fine.list[kf], &slot, &x, &y, &z);
+  int cx, cy, cz, gx, gy, gz;
+  vd_lattice_coarse_cell(coarse.lat, s, x, y, z, &cx, &cy, &cz);
+  vd_lattice_global(coarse.lat, coarse.slot_keys, slot, cx, cy, cz, &gx, &gy, &gz);
+  vd_float4 gc = vd_level_coords(g.x, g.y, g.z, s);
+  float fx = gc.x - (float)gx, fy = gc.y - (float)gy, fz = gc.z - (float)gz;
+  for (int o = 0; o < 8; ++o) {
+    int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
+    idx[o] = vd_lattice_compact(coarse.lat, coarse.nbr, coarse.compact, slot, cx + ox, cy + oy, cz + oz);
+    if (idx[o] < 0) return 0;
+    alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+  }
+  return 1;
+}
+
+/* Fine constraint c, in the cell whose first corner is fine active point kf (-1: unusable),
+ * re-expressed on the coarse level (w = 0 when a corner is missing). */
+VD_INLINE VdCorrespondence vd_level_constraint(VdCorrespondence c, int kf, VdActive fine,
+                                               VD_GLOBAL const vd_float4* x_f, int s, VdActive coarse,
+                                               VD_GLOBAL const vd_float4* x0_c) {
   VdCorrespondence out = c;
   int idx[8];
   float alpha[8];
   vd_float4 gc = vd_level_coords(c.canonical.x, c.canonical.y, c.canonical.z, s);
   gc.w = c.canonical.w;
   out.canonical = gc;
-  if (!(c.canonical.w > 0.0f) || !vd_cell_corners(c.canonical, compact_f, fine, idx, alpha)) {
+  if (kf < 0 || !(c.canonical.w > 0.0f) || !vd_active_cell(fine, kf, c.canonical, idx, alpha)) {
     out.canonical.w = 0.0f;
     return out;
   }
   vd_float4 p_cur = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int o = 0; o < 8; ++o) p_cur = p_cur + x_f[idx[o]] * alpha[o];
-  if (!vd_cell_corners(gc, compact_c, coarse, idx, alpha)) {
+  if (!vd_level_cell(fine, kf, c.canonical, s, coarse, idx, alpha)) {
     out.canonical.w = 0.0f;
     return out;
   }
@@ -106,15 +125,24 @@ VD_INLINE VdCorrespondence vd_level_constraint(VdCorrespondence c, VD_GLOBAL con
 }
 
 /* Increment of fine active point k from the coarse solution (0 when a corner is missing). */
-VD_INLINE vd_float4 vd_level_prolongate(int k, VD_GLOBAL const int* list_f, VdVolume fine, int s,
-                                        VD_GLOBAL const int* compact_c, VdVolume coarse,
-                                        VD_GLOBAL const vd_float4* x_c, VD_GLOBAL const vd_float4* x0_c) {
-  int x, y, z;
-  vd_grid_coords(list_f[k], fine, &x, &y, &z);
+VD_INLINE vd_float4 vd_level_prolongate(int k, VdActive fine, int s, VdActive coarse, VD_GLOBAL const vd_float4* x_c,
+                                        VD_GLOBAL const vd_float4* x0_c) {
+  int slot, x, y, z, gx, gy, gz;
+  vd_active_point(fine, k, &slot, &x, &y, &z, &gx, &gy, &gz);
   int idx[8];
   float alpha[8];
   vd_float4 u = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  if (!vd_cell_corners(vd_level_coords((float)x, (float)y, (float)z, s), compact_c, coarse, idx, alpha)) return u;
+  int cx, cy, cz, cgx, cgy, cgz;
+  vd_lattice_coarse_cell(coarse.lat, s, x, y, z, &cx, &cy, &cz);
+  vd_lattice_global(coarse.lat, coarse.slot_keys, slot, cx, cy, cz, &cgx, &cgy, &cgz);
+  vd_float4 g = vd_level_coords((float)gx, (float)gy, (float)gz, s);
+  float fx = g.x - (float)cgx, fy = g.y - (float)cgy, fz = g.z - (float)cgz;
+  for (int o = 0; o < 8; ++o) {
+    int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
+    idx[o] = vd_lattice_compact(coarse.lat, coarse.nbr, coarse.compact, slot, cx + ox, cy + oy, cz + oz);
+    if (idx[o] < 0) return u;
+    alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+  }
   for (int o = 0; o < 8; ++o) u = u + (x_c[idx[o]] - x0_c[idx[o]]) * alpha[o];
   u.w = 0.0f;
   return u;
@@ -129,20 +157,19 @@ VD_INLINE vd_float4 vd_level_prolongate(int k, VD_GLOBAL const int* list_f, VdVo
 
 /* The moments of the coarse cell whose first corner is active point K (VD_CELL_MOMENT_FLOATS at
  * moments_c + K * that): the 27 B^T B moments, the residuals' right-hand sides and the count. */
-VD_INLINE void vd_level_moments(int K, VD_GLOBAL const int* list_c, VdVolume coarse, int s,
-                                VD_GLOBAL const int* compact_f, VdVolume fine, VD_GLOBAL const VdCorrespondence* cons,
+VD_INLINE void vd_level_moments(int K, VdActive coarse, int s, VdActive fine, VD_GLOBAL const VdCorrespondence* cons,
                                 VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const vd_float4* x_f,
                                 VD_GLOBAL float* moments_c) {
-  int X, Y, Z;
-  vd_grid_coords(list_c[K], coarse, &X, &Y, &Z);
+  int slot, X, Y, Z, GX, GY, GZ;
+  vd_active_point(coarse, K, &slot, &X, &Y, &Z, &GX, &GY, &GZ);
   float acc[VD_CELL_COUNT_SLOT];
   for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) acc[i] = 0.0f;
   vd_uint count = 0u;
   float inv = 1.0f / (float)s;
   for (int d = 0; d < s * s * s; ++d) {
-    int x = s * X + d % s, y = s * Y + (d / s) % s, z = s * Z + d / (s * s);
-    if (x >= fine.dim_x - 1 || y >= fine.dim_y - 1 || z >= fine.dim_z - 1) continue;
-    int kc = compact_f[vd_grid_index(fine, x, y, z)];
+    int dx = d % s, dy = (d / s) % s, dz = d / (s * s);
+    int x = s * X + dx, y = s * Y + dy, z = s * Z + dz;
+    int kc = vd_lattice_compact(fine.lat, fine.nbr, fine.compact, slot, x, y, z);
     if (kc < 0) continue;
     vd_uint c0 = cell_start[kc], c1 = cell_start[kc + 1];
     if (c0 == c1) continue;
@@ -150,22 +177,57 @@ VD_INLINE void vd_level_moments(int K, VD_GLOBAL const int* list_c, VdVolume coa
     /* A fine cell holds constraints only when all 8 corners are active (vd_cell_corners). */
     vd_float4 xc[8];
     for (int o = 0; o < 8; ++o)
-      xc[o] = x_f[compact_f[vd_grid_index(fine, x + (o & 1), y + ((o >> 1) & 1), z + (o >> 2))]];
+      xc[o] = x_f[vd_lattice_compact(fine.lat, fine.nbr, fine.compact, slot, x + (o & 1), y + ((o >> 1) & 1),
+                                     z + (o >> 2))];
+    /* The fine cell's global coordinates. */
+    float fgx = (float)(s * GX + dx), fgy = (float)(s * GY + dy), fgz = (float)(s * GZ + dz);
     for (vd_uint c = c0; c < c1; ++c) {
       VdCorrespondence cc = cons[c];
-      float fx = cc.canonical.x - (float)x, fy = cc.canonical.y - (float)y, fz = cc.canonical.z - (float)z;
+      float fx = cc.canonical.x - fgx, fy = cc.canonical.y - fgy, fz = cc.canonical.z - fgz;
       vd_float4 p = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
       for (int o = 0; o < 8; ++o)
         p = p + xc[o] * ((o & 1 ? fx : 1.0f - fx) * (o & 2 ? fy : 1.0f - fy) * (o & 4 ? fz : 1.0f - fz));
-      /* The coarse fractions as vd_level_constraint and vd_cell_corners form them. */
-      float gx = cc.canonical.x * inv - (float)X, gy = cc.canonical.y * inv - (float)Y,
-            gz = cc.canonical.z * inv - (float)Z;
+      /* The coarse fractions as vd_level_constraint and vd_level_cell form them. */
+      float gx = cc.canonical.x * inv - (float)GX, gy = cc.canonical.y * inv - (float)GY,
+            gz = cc.canonical.z * inv - (float)GZ;
       vd_moments_add(acc, gx, gy, gz, cc.canonical.w, cc.normal, cc.canonical.w * vd_dot3(cc.normal, cc.target - p));
     }
   }
   VD_GLOBAL float* out = moments_c + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)K;
   for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) out[i] = acc[i];
   out[VD_CELL_COUNT_SLOT] = (float)count;
+}
+
+/* Bricks for the coarse levels (the pool's bricks, docs/SPARSE_VOLUME.md "The solver on a lattice"):
+ * the far corners of the coarse cell (spacing s) holding a fine point near the +x, +y or +z face of
+ * its brick lie in the neighbour brick across it, which must exist for the level to hold them (a
+ * dense grid always has them). For fine entry e, every such missing neighbour brick is allocated
+ * (vd_brick_allocate; at rest, unobserved). The largest spacing covers the smaller ones (a point
+ * reaches across only from local coordinates 8 - s up). Returns the failures. */
+VD_INLINE int vd_brick_level_allocate(int e, int s, VD_GLOBAL const int* nbr, VD_GLOBAL vd_uint* keys,
+                                      VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys, vd_uint capacity,
+                                      vd_uint pool, VD_GLOBAL vd_uint* counters) {
+  int slot, x, y, z;
+  vd_lattice_point(vd_lattice_bricks(1.0f, 1), e, &slot, &x, &y, &z);
+  /* Steps across the + faces: 1 where the coarse cell's far corner leaves the brick. */
+  int sx = x / s + 1 >= VD_BRICK / s, sy = y / s + 1 >= VD_BRICK / s, sz = z / s + 1 >= VD_BRICK / s;
+  if (!(sx || sy || sz)) return 0;
+  int bx, by, bz;
+  vd_brick_unpack(slot_keys[slot], &bx, &by, &bz);
+  int failures = 0;
+  for (int o = 1; o < 8; ++o) {
+    int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
+    if ((ox && !sx) || (oy && !sy) || (oz && !sz)) continue;
+    if (nbr[27 * slot + (ox + 1) + 3 * (oy + 1) + 9 * (oz + 1)] >= 0) continue;
+    if (!vd_brick_coords_valid(bx + ox, by + oy, bz + oz)) {
+      VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
+      ++failures;
+      continue;
+    }
+    failures +=
+        !vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, vd_brick_pack(bx + ox, by + oy, bz + oz));
+  }
+  return failures;
 }
 
 #endif /* VD_HIERARCHY_H */

@@ -14,6 +14,7 @@
 
 #include "correspondence.h"
 #include "deformation.h"
+#include "lattice.h"
 #include "svd3.h"
 
 typedef struct {
@@ -52,7 +53,8 @@ VD_INLINE int vd_cell_corners(vd_float4 g, VD_GLOBAL const int* compact, VdVolum
   return 1;
 }
 
-/* Compact index of the first corner of c's cell, -1 when the constraint is unusable. */
+/* Compact index of the first corner of c's cell on a dense grid, -1 when the constraint is unusable
+ * (on bricks: vd_sparse_constraint_cell). */
 VD_INLINE int vd_constraint_cell(VdCorrespondence c, VD_GLOBAL const int* compact, VdVolume vol) {
   if (!(c.canonical.w > 0.0f)) return -1;
   int idx[8];
@@ -61,12 +63,65 @@ VD_INLINE int vd_constraint_cell(VdCorrespondence c, VD_GLOBAL const int* compac
   return idx[0];
 }
 
-/* w_c n_c . sum_l alpha_l d_l: the constraint's row of B (times its weight) applied to d. */
-VD_INLINE float vd_constraint_apply(VdCorrespondence c, VD_GLOBAL const int* compact, VdVolume vol,
-                                    VD_GLOBAL const vd_float4* d) {
+/* The active set M on its lattice (shared/lattice.h), as the solver's kernels see it: built in each
+ * kernel from its arguments (OpenCL 1.2 kernels cannot take buffers inside a struct). */
+typedef struct {
+  VdLattice lat;
+  /* Bricks: the 27 neighbour slots of each slot, and each slot's brick key (never read on a dense
+   * grid). */
+  VD_GLOBAL const int* nbr;
+  VD_GLOBAL const vd_uint* slot_keys;
+  /* Active index -> entry, and entry -> active index (-1 outside M). */
+  VD_GLOBAL const int* list;
+  VD_GLOBAL const int* compact;
+} VdActive;
+
+VD_INLINE VdActive vd_active(VdLattice lat, VD_GLOBAL const int* nbr, VD_GLOBAL const vd_uint* slot_keys,
+                             VD_GLOBAL const int* list, VD_GLOBAL const int* compact) {
+  VdActive a;
+  a.lat = lat;
+  a.nbr = nbr;
+  a.slot_keys = slot_keys;
+  a.list = list;
+  a.compact = compact;
+  return a;
+}
+
+/* Active point k's brick slot, local and global coordinates. */
+VD_INLINE void vd_active_point(VdActive a, int k, int* slot, int* x, int* y, int* z, int* gx, int* gy, int* gz) {
+  vd_lattice_point(a.lat, a.list[k], slot, x, y, z);
+  vd_lattice_global(a.lat, a.slot_keys, *slot, *x, *y, *z, gx, gy, gz);
+}
+
+/* Rest position of active point k. */
+VD_INLINE vd_float4 vd_active_rest(VdActive a, int k) {
+  int slot, x, y, z;
+  vd_lattice_point(a.lat, a.list[k], &slot, &x, &y, &z);
+  return vd_lattice_position(a.lat, a.slot_keys, slot, x, y, z);
+}
+
+/* The cell whose first corner is active point kc, for global position g in it: compact indices of
+ * its 8 corners and their trilinear weights (the fractions g - the corner's global coordinates, as
+ * vd_cell_corners forms them on a dense grid). Returns 0 when a corner is not in M. */
+VD_INLINE int vd_active_cell(VdActive a, int kc, vd_float4 g, int* idx, float* alpha) {
+  int slot, x, y, z, gx, gy, gz;
+  vd_active_point(a, kc, &slot, &x, &y, &z, &gx, &gy, &gz);
+  float fx = g.x - (float)gx, fy = g.y - (float)gy, fz = g.z - (float)gz;
+  for (int o = 0; o < 8; ++o) {
+    int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
+    idx[o] = vd_lattice_compact(a.lat, a.nbr, a.compact, slot, x + ox, y + oy, z + oz);
+    if (idx[o] < 0) return 0;
+    alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+  }
+  return 1;
+}
+
+/* w_c n_c . sum_l alpha_l d_l: the row of B (times its weight) of constraint c, in the cell whose
+ * first corner is active point kc (-1: unusable), applied to d. */
+VD_INLINE float vd_constraint_apply(VdCorrespondence c, int kc, VdActive a, VD_GLOBAL const vd_float4* d) {
   int idx[8];
   float alpha[8];
-  if (!(c.canonical.w > 0.0f) || !vd_cell_corners(c.canonical, compact, vol, idx, alpha)) return 0.0f;
+  if (kc < 0 || !(c.canonical.w > 0.0f) || !vd_active_cell(a, kc, c.canonical, idx, alpha)) return 0.0f;
   vd_float4 s = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int o = 0; o < 8; ++o) s = s + d[idx[o]] * alpha[o];
   return c.canonical.w * vd_dot3(c.normal, s);
@@ -77,26 +132,24 @@ VD_INLINE float vd_constraint_target(VdCorrespondence c) { return c.canonical.w 
 
 /* sum over the cells point k is a corner of, over their constraints c, of alpha_ck n_c values[c];
  * with `diag` non-null also accumulates sum w_c alpha_ck^2 n_c n_c^T (row-major 3x3). */
-VD_INLINE vd_float4 vd_gather_constraints(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact,
-                                          VdVolume vol, VD_GLOBAL const VdCorrespondence* cons,
+VD_INLINE vd_float4 vd_gather_constraints(int k, VdActive a, VD_GLOBAL const VdCorrespondence* cons,
                                           VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* values,
                                           VdMat3* diag) {
-  int x, y, z;
-  vd_grid_coords(list[k], vol, &x, &y, &z);
+  int slot, x, y, z, gx, gy, gz;
+  vd_active_point(a, k, &slot, &x, &y, &z, &gx, &gy, &gz);
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int o = 0; o < 8; ++o) {
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
-    int cx = x - ox, cy = y - oy, cz = z - oz;
-    if (cx < 0 || cy < 0 || cz < 0 || cx > vol.dim_x - 2 || cy > vol.dim_y - 2 || cz > vol.dim_z - 2) continue;
-    int kc = compact[vd_grid_index(vol, cx, cy, cz)];
+    int kc = vd_lattice_compact(a.lat, a.nbr, a.compact, slot, x - ox, y - oy, z - oz);
     if (kc < 0) continue;
+    int cx = gx - ox, cy = gy - oy, cz = gz - oz;
     for (vd_uint c = cell_start[kc]; c < cell_start[kc + 1]; ++c) {
       VdCorrespondence cc = cons[c];
       float fx = cc.canonical.x - (float)cx, fy = cc.canonical.y - (float)cy, fz = cc.canonical.z - (float)cz;
-      float a = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
-      if (values) acc = acc + cc.normal * (a * values[c]);
+      float w = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+      if (values) acc = acc + cc.normal * (w * values[c]);
       if (diag) {
-        vd_float4 nw = cc.normal * (cc.canonical.w * a * a);
+        vd_float4 nw = cc.normal * (cc.canonical.w * w * w);
         vd_mat3_add_outer(diag, nw, cc.normal);
       }
     }
@@ -137,12 +190,11 @@ VD_INLINE float vd_weighted_degree(int k, VD_GLOBAL const int* neighbours, VD_GL
 }
 
 /* A d at point k, given the constraint residuals r_c = vd_constraint_apply(c, d). */
-VD_INLINE vd_float4 vd_system_apply(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
-                                    VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+VD_INLINE vd_float4 vd_system_apply(int k, VdActive a, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
                                     VD_GLOBAL const VdCorrespondence* cons, VD_GLOBAL const vd_uint* cell_start,
                                     VD_GLOBAL const float* r, VD_GLOBAL const vd_float4* d, VdSolverWeights w) {
   vd_float4 q = vd_laplacian_apply(k, neighbours, edge_w, w.weighted_edges, d) * (2.0f * w.w_reg) +
-                vd_gather_constraints(k, list, compact, vol, cons, cell_start, r, 0) * w.w_dense + d[k] * w.damping;
+                vd_gather_constraints(k, a, cons, cell_start, r, 0) * w.w_dense + d[k] * w.damping;
   q.w = 0.0f;
   return q;
 }
@@ -206,13 +258,13 @@ VD_INLINE void vd_moments_add(float* acc, float fx, float fy, float fz, float w,
 /* Moments of the constraints of the cell whose first corner is active point kc (rows
  * cell_start[kc] .. cell_start[kc + 1] of the sorted constraints); for a cell without constraints
  * only its count (0) is written (the assembly skips it). */
-VD_INLINE void vd_cell_moments(int kc, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const VdCorrespondence* cons,
+VD_INLINE void vd_cell_moments(int kc, VdActive a, VD_GLOBAL const VdCorrespondence* cons,
                                VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL float* moments) {
   vd_uint c0 = cell_start[kc], c1 = cell_start[kc + 1];
   moments[(size_t)VD_CELL_MOMENT_FLOATS * (size_t)kc + VD_CELL_COUNT_SLOT] = (float)(c1 - c0);
   if (c0 == c1) return;
-  int x, y, z;
-  vd_grid_coords(list[kc], vol, &x, &y, &z);
+  int slot, lx, ly, lz, x, y, z;
+  vd_active_point(a, kc, &slot, &lx, &ly, &lz, &x, &y, &z);
   float acc[VD_CELL_COUNT_SLOT];
   for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) acc[i] = 0.0f;
   for (vd_uint c = c0; c < c1; ++c) {
@@ -246,26 +298,22 @@ VD_INLINE VdMat3 vd_mat3_inverse_spd(VdMat3 d) {
  * the PCG product is 27 small mat-vecs and nothing else. Returns the data right-hand side (times
  * w_d), plus (w_d B^T B x0)_k when shift (a coarse level's start, shared/hierarchy.h); the inverse
  * of the diagonal block goes to diag_inv. */
-VD_INLINE vd_float4 vd_btb_assemble(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
-                                    VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+VD_INLINE vd_float4 vd_btb_assemble(int k, VdActive a, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
                                     VD_GLOBAL const float* moments, VdSolverWeights w, VD_GLOBAL const vd_float4* x0,
                                     int shift, VD_GLOBAL float* blocks, VD_GLOBAL int* nbr, VdMat3* diag_inv) {
-  int x, y, z;
-  vd_grid_coords(list[k], vol, &x, &y, &z);
-  for (int o = 0; o < VD_BTB_BLOCKS; ++o) {
-    int nx = x + o % 3 - 1, ny = y + (o / 3) % 3 - 1, nz = z + o / 9 - 1;
-    int inside = nx >= 0 && ny >= 0 && nz >= 0 && nx < vol.dim_x && ny < vol.dim_y && nz < vol.dim_z;
-    nbr[VD_BTB_BLOCKS * k + o] = inside ? compact[vd_grid_index(vol, nx, ny, nz)] : -1;
-  }
+  int slot, x, y, z;
+  vd_lattice_point(a.lat, a.list[k], &slot, &x, &y, &z);
+  for (int o = 0; o < VD_BTB_BLOCKS; ++o)
+    nbr[VD_BTB_BLOCKS * k + o] =
+        vd_lattice_compact(a.lat, a.nbr, a.compact, slot, x + o % 3 - 1, y + (o / 3) % 3 - 1, z + o / 9 - 1);
   float acc[VD_BTB_FLOATS];
   for (int i = 0; i < VD_BTB_FLOATS; ++i) acc[i] = 0.0f;
   vd_float4 data = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   VD_UNROLL
   for (int ok = 0; ok < 8; ++ok) {
     int kx = ok & 1, ky = (ok >> 1) & 1, kz = (ok >> 2) & 1;
-    int cx = x - kx, cy = y - ky, cz = z - kz;
-    if (cx < 0 || cy < 0 || cz < 0 || cx > vol.dim_x - 2 || cy > vol.dim_y - 2 || cz > vol.dim_z - 2) continue;
-    int kc = compact[vd_grid_index(vol, cx, cy, cz)];
+    /* The cell with k at corner ok starts at offset -ok: one of the 27 just looked up. */
+    int kc = nbr[VD_BTB_BLOCKS * k + (1 - kx) + 3 * (1 - ky) + 9 * (1 - kz)];
     if (kc < 0) continue;
     VD_GLOBAL const float* mom = moments + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)kc;
     if (mom[VD_CELL_COUNT_SLOT] == 0.0f) continue;
@@ -346,14 +394,14 @@ VD_INLINE vd_float4 vd_system_apply_cached(int k, VD_GLOBAL const float* blocks,
 /* The ARAP part of the right-hand side at point k: sum_j w_kj (R_k + R_j)(t^_k - t^_j) (times w_r
  * by the caller). It changes with the rotations, so it is recomputed every position step. R_k is
  * applied once, to the weighted sum of the edges (7 rotations instead of 12). */
-VD_INLINE vd_float4 vd_system_reg_rhs(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
+VD_INLINE vd_float4 vd_system_reg_rhs(int k, float spacing, VD_GLOBAL const int* neighbours,
                                       VD_GLOBAL const float* edge_w, VD_GLOBAL const vd_float4* rot) {
   vd_float4 reg = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   vd_float4 edges = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
     if (nb < 0) continue;
-    vd_float4 e = vd_neighbour_edge(j, vol.voxel_size) * edge_w[6 * k + j];
+    vd_float4 e = vd_neighbour_edge(j, spacing) * edge_w[6 * k + j];
     edges = edges + e;
     reg = reg + vd_quat_rotate(rot[nb], e);
   }
@@ -366,12 +414,12 @@ VD_INLINE vd_float4 vd_system_reg_rhs(int k, VD_GLOBAL const int* list, VdVolume
  * solve (the paper caches B^T B for the same reason): the data right-hand side
  * w_d sum_c alpha_ck n_c (w_c n_c . p_c) (returned) and the inverse of the 3x3 diagonal block
  * 2 w_r deg_k I + w_d sum_c w_c alpha_ck^2 n_c n_c^T + lambda I, the Jacobi preconditioner. */
-VD_INLINE vd_float4 vd_system_data_diag(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* compact, VdVolume vol,
-                                        VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
-                                        VD_GLOBAL const VdCorrespondence* cons, VD_GLOBAL const vd_uint* cell_start,
-                                        VD_GLOBAL const float* targets, VdSolverWeights w, VdMat3* diag_inv) {
+VD_INLINE vd_float4 vd_system_data_diag(int k, VdActive a, VD_GLOBAL const int* neighbours,
+                                        VD_GLOBAL const float* edge_w, VD_GLOBAL const VdCorrespondence* cons,
+                                        VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL const float* targets,
+                                        VdSolverWeights w, VdMat3* diag_inv) {
   VdMat3 diag = vd_mat3_zero();
-  vd_float4 data = vd_gather_constraints(k, list, compact, vol, cons, cell_start, targets, &diag);
+  vd_float4 data = vd_gather_constraints(k, a, cons, cell_start, targets, &diag);
   float s = 2.0f * w.w_reg * vd_weighted_degree(k, neighbours, edge_w) + w.damping;
   for (int a = 0; a < 9; ++a) diag.m[a] *= w.w_dense;
   diag.m[0] += s;
@@ -385,12 +433,10 @@ VD_INLINE vd_float4 vd_system_data_diag(int k, VD_GLOBAL const int* list, VD_GLO
 }
 
 /* Right-hand side b_k = w_r reg_k + data_k + lambda x_prev_k, from the cached data part. */
-VD_INLINE vd_float4 vd_system_rhs(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
-                                  VD_GLOBAL const float* edge_w, VD_GLOBAL const vd_float4* rot,
-                                  VD_GLOBAL const vd_float4* data_rhs, VD_GLOBAL const vd_float4* x_prev,
-                                  VdSolverWeights w) {
-  vd_float4 b =
-      vd_system_reg_rhs(k, list, vol, neighbours, edge_w, rot) * w.w_reg + data_rhs[k] + x_prev[k] * w.damping;
+VD_INLINE vd_float4 vd_system_rhs(int k, float spacing, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                                  VD_GLOBAL const vd_float4* rot, VD_GLOBAL const vd_float4* data_rhs,
+                                  VD_GLOBAL const vd_float4* x_prev, VdSolverWeights w) {
+  vd_float4 b = vd_system_reg_rhs(k, spacing, neighbours, edge_w, rot) * w.w_reg + data_rhs[k] + x_prev[k] * w.damping;
   b.w = 0.0f;
   return b;
 }
@@ -506,12 +552,11 @@ VD_INLINE float vd_pcg_cg_update(int k, VD_GLOBAL const float* scal, VD_GLOBAL c
 /* The start of a position step at point k from the current x (also the damping's anchor):
  * b_k (vd_system_rhs), r_k = b_k - (A x)_k from the cached blocks and u_k = M^-1 r_k, in one pass
  * instead of four; returns the term of b.b (the scale of the convergence test). */
-VD_INLINE float vd_pcg_start(int k, VD_GLOBAL const int* list, VdVolume vol, VD_GLOBAL const int* neighbours,
-                             VD_GLOBAL const float* edge_w, VD_GLOBAL const vd_float4* rot,
-                             VD_GLOBAL const vd_float4* data_rhs, VdSolverWeights w, VD_GLOBAL const float* blocks,
-                             VD_GLOBAL const int* nbr, VD_GLOBAL const VdMat3* diag_inv, VD_GLOBAL const vd_float4* x,
-                             VD_GLOBAL vd_float4* r, VD_GLOBAL vd_float4* u) {
-  vd_float4 b = vd_system_rhs(k, list, vol, neighbours, edge_w, rot, data_rhs, x, w);
+VD_INLINE float vd_pcg_start(int k, float spacing, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
+                             VD_GLOBAL const vd_float4* rot, VD_GLOBAL const vd_float4* data_rhs, VdSolverWeights w,
+                             VD_GLOBAL const float* blocks, VD_GLOBAL const int* nbr, VD_GLOBAL const VdMat3* diag_inv,
+                             VD_GLOBAL const vd_float4* x, VD_GLOBAL vd_float4* r, VD_GLOBAL vd_float4* u) {
+  vd_float4 b = vd_system_rhs(k, spacing, neighbours, edge_w, rot, data_rhs, x, w);
   vd_float4 rk = b - vd_system_apply_cached(k, blocks, nbr, x);
   rk.w = 0.0f;
   r[k] = rk;
@@ -529,25 +574,23 @@ VD_INLINE void vd_pcg_dots(int k, VD_GLOBAL const vd_float4* r, VD_GLOBAL const 
 
 /* Energy terms (paper eqs. 2 and 4) for tests and the status: one constraint's weighted squared
  * point-to-plane residual, and one point's ARAP sum over its neighbours. */
-VD_INLINE float vd_constraint_energy(VdCorrespondence c, VD_GLOBAL const int* compact, VdVolume vol,
-                                     VD_GLOBAL const vd_float4* x) {
+VD_INLINE float vd_constraint_energy(VdCorrespondence c, int kc, VdActive a, VD_GLOBAL const vd_float4* x) {
   int idx[8];
   float alpha[8];
-  if (!(c.canonical.w > 0.0f) || !vd_cell_corners(c.canonical, compact, vol, idx, alpha)) return 0.0f;
+  if (kc < 0 || !(c.canonical.w > 0.0f) || !vd_active_cell(a, kc, c.canonical, idx, alpha)) return 0.0f;
   vd_float4 s = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int o = 0; o < 8; ++o) s = s + x[idx[o]] * alpha[o];
   float r = vd_dot3(c.normal, s - c.target);
   return c.canonical.w * r * r;
 }
 
-VD_INLINE float vd_arap_energy(int k, VD_GLOBAL const int* list, VD_GLOBAL const int* neighbours,
-                               VD_GLOBAL const float* edge_w, VdVolume vol, VD_GLOBAL const vd_float4* x,
-                               VD_GLOBAL const vd_float4* rot) {
+VD_INLINE float vd_arap_energy(int k, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w, float spacing,
+                               VD_GLOBAL const vd_float4* x, VD_GLOBAL const vd_float4* rot) {
   float e = 0.0f;
   for (int j = 0; j < 6; ++j) {
     int nb = neighbours[6 * k + j];
     if (nb < 0) continue;
-    vd_float4 d = (x[k] - x[nb]) - vd_quat_rotate(rot[k], vd_neighbour_edge(j, vol.voxel_size));
+    vd_float4 d = (x[k] - x[nb]) - vd_quat_rotate(rot[k], vd_neighbour_edge(j, spacing));
     d.w = 0.0f;
     e += edge_w[6 * k + j] * vd_dot3(d, d);
   }

@@ -19,13 +19,26 @@ class HierarchicalSolver {
       : ops_(ops), params_(params), fine_(ops, params, params.cache_btb_fine) {}
 
   // Builds levels 1 .. params.levels-1 from the fine active set (once per frame: M changes per
-  // frame only).
-  Status Prepare(const DeviceVolume& v, const DeviceActiveSet& fine);
-  // One non-linear solve from the field's current state: coarse levels first, then the fine level.
-  // With `energies`, the summary has the fine level's E_total before and after (else 0).
+  // frame only), on the dense grid of v or on any fine lattice (the pool's bricks: `slots` of
+  // them hold points; unused on a dense grid).
+  Status Prepare(const DeviceVolume& v, const DeviceActiveSet& fine) {
+    return Prepare(DeviceLattice::Dense(v.vol), 0, fine);
+  }
+  Status Prepare(const DeviceLattice& lattice, uint32_t slots, const DeviceActiveSet& fine);
+  // One non-linear solve from the field's current state (def_pos / def_rot, indexed by the fine
+  // lattice's entries): coarse levels first, then the fine level. With `energies`, the summary
+  // has the fine level's E_total before and after (else 0).
   StatusOr<SolverSummary> Solve(const DeviceVolume& v, const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n,
-                                bool energies = true);
+                                bool energies = true) {
+    if (!v.has_deformation()) return FailedPrecondition("the solver needs a grid with a deformation field");
+    return Solve(v.def_pos, v.def_rot, per_pixel, n, energies);
+  }
+  StatusOr<SolverSummary> Solve(const ocl::Buffer<vd_float4>& def_pos, const ocl::Buffer<vd_float4>& def_rot,
+                                const ocl::Buffer<VdCorrespondence>& per_pixel, size_t n, bool energies = true);
   Status WriteBack(DeviceVolume& v) { return fine_.WriteBack(v); }
+  Status WriteBack(ocl::Buffer<vd_float4>& def_pos, ocl::Buffer<vd_float4>& def_rot) {
+    return fine_.WriteBack(def_pos, def_rot);
+  }
 
   int num_levels() const { return 1 + int(levels_.size()); }
   // Active points of level l (0 = fine).
@@ -33,13 +46,13 @@ class HierarchicalSolver {
   DeviceSolver& fine() { return fine_; }
   // Level l >= 1 (tests).
   const DeviceActiveSet& level_active(int l) const { return levels_[l - 1]->active; }
-  const VdVolume& level_volume(int l) const { return levels_[l - 1]->vol; }
+  const DeviceLattice& level_lattice(int l) const { return levels_[l - 1]->lattice; }
 
  private:
   struct Level {
     Level(DeviceOps* ops, const SolverParams& params) : solver(ops, params, params.cache_btb_coarse) {}
     int spacing = 2;
-    VdVolume vol{};
+    DeviceLattice lattice;
     DeviceActiveSet active;
     ocl::Buffer<uint8_t> member;
     ocl::Buffer<uint32_t> row_count, row_offset;
@@ -49,19 +62,14 @@ class HierarchicalSolver {
     ocl::Buffer<VdCorrespondence> cons;
     DeviceSolver solver;
   };
-  Status BuildLevel(const DeviceVolume& v, const DeviceActiveSet& fine, Level* level);
-  // The level's moments from the fine constraints at the current fine state (shared/hierarchy.h).
-  Status LevelMoments(const DeviceVolume& v, Level* level);
+  Status BuildLevel(uint32_t slots, const DeviceActiveSet& fine, Level* level);
 
   DeviceOps* ops_;
   const SolverParams params_;
   DeviceSolver fine_;
   const DeviceActiveSet* fine_active_ = nullptr;
+  DeviceLattice lattice_;
   std::vector<std::unique_ptr<Level>> levels_;
 };
-
-// The grid of level l (spacing s = 2^l): same origin, s times the voxel size, enough points that
-// every fine grid point lies in a coarse cell.
-VdVolume LevelVolume(const VdVolume& fine, int spacing);
 
 }  // namespace vd

@@ -77,7 +77,14 @@ VdSolverWeights DeviceSolver::Weights() const {
 Status DeviceSolver::Setup(const DeviceVolume& v, const DeviceActiveSet& active,
                            const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
   if (!v.has_deformation()) return FailedPrecondition("the solver needs a grid with a deformation field");
-  VD_RETURN_IF_ERROR(SetupLevel(v.vol, active, per_pixel, num_pixels, &v));
+  return Setup(DeviceLattice::Dense(v.vol), v.def_pos, v.def_rot, active, per_pixel, num_pixels);
+}
+
+Status DeviceSolver::Setup(const DeviceLattice& lattice, const ocl::Buffer<vd_float4>& def_pos,
+                           const ocl::Buffer<vd_float4>& def_rot, const DeviceActiveSet& active,
+                           const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
+  const Field field{&def_pos, &def_rot};
+  VD_RETURN_IF_ERROR(SetupLevel(lattice, active, per_pixel, num_pixels, &field));
   rot_warm_ = true;
   return Status::Ok();
 }
@@ -98,23 +105,22 @@ Status DeviceSolver::InitState(const ocl::Buffer<vd_float4>& x0, const ocl::Buff
   return ctx.Copy(rot0, rot_, m_);
 }
 
-Status DeviceSolver::SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
+Status DeviceSolver::SetupConstraints(const DeviceLattice& lattice, const DeviceActiveSet& active,
                                       const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels) {
-  return SetupLevel(vol, active, per_pixel, num_pixels, nullptr);
+  return SetupLevel(lattice, active, per_pixel, num_pixels, nullptr);
 }
 
-Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& active,
-                                const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels,
-                                const DeviceVolume* field) {
+Status DeviceSolver::SetupLevel(const DeviceLattice& lattice, const DeviceActiveSet& active,
+                                const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels, const Field* field) {
   ocl::Context& ctx = ops_->ctx();
-  VD_RETURN_IF_ERROR(SetupPoints(vol, active));
+  VD_RETURN_IF_ERROR(SetupPoints(lattice, active));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_count_, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_start_, m_ + 1));
   VD_RETURN_IF_ERROR(ctx.Reserve(&cell_of_, std::max<size_t>(num_pixels, 1)));
-  if (field) VD_RETURN_IF_ERROR(ocl::GatherState(ctx, m_, active.list, field->def_pos, field->def_rot, x_, rot_));
+  if (field) VD_RETURN_IF_ERROR(ocl::GatherState(ctx, m_, active.list, *field->def_pos, *field->def_rot, x_, rot_));
   adaptive_ = field && params_.adaptive_rigidity > 0.f;
   if (adaptive_ && m_ > 0) {
-    const float s = params_.adaptive_rigidity * vol.voxel_size;
+    const float s = params_.adaptive_rigidity * lattice.lat.spacing;
     VD_RETURN_IF_ERROR(
         ocl::ArapEdgeWeights(ctx, m_, active.neighbours, x_, rot_, rest_, s * s, params_.rigidity_floor, edge_w_));
   } else if (m_ > 0) {
@@ -123,27 +129,29 @@ Status DeviceSolver::SetupLevel(const VdVolume& vol, const DeviceActiveSet& acti
 
   // Counting sort of the constraints by cell.
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
-  VD_RETURN_IF_ERROR(ocl::CountConstraints(ctx, num_pixels, per_pixel, active.compact, vol_, cell_of_, cell_count_));
+  VD_RETURN_IF_ERROR(ocl::CountConstraints(ctx, num_pixels, per_pixel, lattice_, active, cell_of_, cell_count_));
   uint32_t total = 0;
   VD_RETURN_IF_ERROR(ops_->ScanExclusive(cell_count_, m_, cell_start_, &total));
   num_constraints_ = total;
   VD_RETURN_IF_ERROR(ctx.Reserve(&cons_, std::max<size_t>(total, 1)));
+  VD_RETURN_IF_ERROR(ctx.Reserve(&cons_cell_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&targets_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&residuals_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
-  VD_RETURN_IF_ERROR(ocl::SortConstraints(ctx, num_pixels, per_pixel, cell_of_, cell_start_, cell_count_, cons_));
+  VD_RETURN_IF_ERROR(
+      ocl::SortConstraints(ctx, num_pixels, per_pixel, cell_of_, cell_start_, cell_count_, cons_, cons_cell_));
   if (cache_btb_) {
-    return ocl::BuildBtb(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_, cell_start_,
-                         Weights(), moments_, btb_, btb_nbr_, data_rhs_, diag_inv_);
+    return ocl::BuildBtb(ctx, lattice_, active, edge_w_, cons_, cell_start_, Weights(), moments_, btb_, btb_nbr_,
+                         data_rhs_, diag_inv_);
   }
   VD_RETURN_IF_ERROR(ocl::ConstraintTargets(ctx, total, cons_, targets_));
-  return ocl::DataRhsAndDiagonal(ctx, m_, active.list, active.compact, vol_, active.neighbours, edge_w_, cons_,
-                                 cell_start_, targets_, Weights(), data_rhs_, diag_inv_);
+  return ocl::DataRhsAndDiagonal(ctx, lattice_, active, edge_w_, cons_, cell_start_, targets_, Weights(), data_rhs_,
+                                 diag_inv_);
 }
 
-Status DeviceSolver::SetupPoints(const VdVolume& vol, const DeviceActiveSet& active) {
+Status DeviceSolver::SetupPoints(const DeviceLattice& lattice, const DeviceActiveSet& active) {
   ocl::Context& ctx = ops_->ctx();
-  vol_ = vol;
+  lattice_ = lattice;
   active_ = &active;
   m_ = active.count;
   const size_t m = std::max<size_t>(m_, 1);
@@ -157,12 +165,14 @@ Status DeviceSolver::SetupPoints(const VdVolume& vol, const DeviceActiveSet& act
   } else {
     VD_RETURN_IF_ERROR(ctx.Reserve(&b_, m));  // the cached path's start never stores b
   }
-  return ocl::RestPositions(ctx, m_, active.list, vol_, rest_);
+  if (m_ == 0) return Status::Ok();
+  return ocl::RestPositions(ctx, lattice_, active, rest_);
 }
 
-Status DeviceSolver::SetupFromMoments(const VdVolume& vol, const DeviceActiveSet& active, size_t num_constraints) {
+Status DeviceSolver::SetupFromMoments(const DeviceLattice& lattice, const DeviceActiveSet& active,
+                                      size_t num_constraints) {
   if (!cache_btb_) return FailedPrecondition("SetupFromMoments needs the cached B^T B");
-  VD_RETURN_IF_ERROR(SetupPoints(vol, active));
+  VD_RETURN_IF_ERROR(SetupPoints(lattice, active));
   num_constraints_ = num_constraints;
   adaptive_ = false;
   if (m_ == 0) return Status::Ok();
@@ -172,9 +182,8 @@ Status DeviceSolver::SetupFromMoments(const VdVolume& vol, const DeviceActiveSet
 Status DeviceSolver::AssembleFromMoments(const ocl::Buffer<vd_float4>& x0) {
   if (m_ == 0) return Status::Ok();
   ocl::Context& ctx = ops_->ctx();
-  const auto& a = *active_;
-  return ocl::AssembleBtb(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, moments_, Weights(), x0, btb_,
-                          btb_nbr_, data_rhs_, diag_inv_);
+  return ocl::AssembleBtb(ctx, lattice_, *active_, edge_w_, moments_, Weights(), x0, btb_, btb_nbr_, data_rhs_,
+                          diag_inv_);
 }
 
 StatusOr<double> DeviceSolver::SumPartials(size_t groups) {
@@ -190,9 +199,8 @@ Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float
   const auto& a = *active_;
   const VdSolverWeights w = Weights();
   if (cache_btb_) return ocl::ApplySystemCached(ctx, m_, btb_, btb_nbr_, d, q);
-  VD_RETURN_IF_ERROR(ocl::ConstraintResiduals(ctx, num_constraints_, cons_, a.compact, vol_, d, residuals_));
-  return ocl::ApplySystem(ctx, m_, a.list, a.compact, vol_, a.neighbours, edge_w_, cons_, cell_start_, residuals_, d, w,
-                          q);
+  VD_RETURN_IF_ERROR(ocl::ConstraintResiduals(ctx, num_constraints_, cons_, cons_cell_, lattice_, a, d, residuals_));
+  return ocl::ApplySystem(ctx, lattice_, a, edge_w_, cons_, cell_start_, residuals_, d, w, q);
 }
 
 Status DeviceSolver::ApplyDots() {
@@ -217,10 +225,11 @@ StatusOr<int> DeviceSolver::PositionStep() {
   // r = b - A x, u = M^-1 r and the stop from b.b; x is the damping's anchor (b holds lambda x).
   size_t bb_partials = groups;
   if (cache_btb_) {
-    VD_RETURN_IF_ERROR(ocl::PcgStart(ctx, m_, a.list, vol_, a.neighbours, edge_w_, rot_, data_rhs_, w, btb_, btb_nbr_,
-                                     diag_inv_, x_, r_, u_, partials_));
+    VD_RETURN_IF_ERROR(ocl::PcgStart(ctx, m_, lattice_.lat.spacing, a.neighbours, edge_w_, rot_, data_rhs_, w, btb_,
+                                     btb_nbr_, diag_inv_, x_, r_, u_, partials_));
   } else {
-    VD_RETURN_IF_ERROR(ocl::SystemRhs(ctx, m_, a.list, vol_, a.neighbours, edge_w_, rot_, data_rhs_, x_, w, b_));
+    VD_RETURN_IF_ERROR(
+        ocl::SystemRhs(ctx, m_, lattice_.lat.spacing, a.neighbours, edge_w_, rot_, data_rhs_, x_, w, b_));
     VD_RETURN_IF_ERROR(Apply(x_, r_));
     VD_RETURN_IF_ERROR(ocl::SubFrom(ctx, m_, b_, r_));
     VD_RETURN_IF_ERROR(ocl::Precondition(ctx, m_, diag_inv_, r_, u_));
@@ -258,12 +267,12 @@ StatusOr<double> DeviceSolver::Energy(double* dense, double* reg) {
   VD_RETURN_IF_ERROR(ctx.Reserve(&partials_, std::max<size_t>(std::max(gc, gp), 1)));
   double ed = 0.0, er = 0.0;
   if (gc) {
-    VD_RETURN_IF_ERROR(
-        ocl::DenseEnergyPartials(ctx, gc, cons_, int(num_constraints_), kChunk, active_->compact, vol_, x_, partials_));
+    VD_RETURN_IF_ERROR(ocl::DenseEnergyPartials(ctx, gc, cons_, cons_cell_, int(num_constraints_), kChunk, lattice_,
+                                                *active_, x_, partials_));
     VD_ASSIGN_OR_RETURN(ed, SumPartials(gc));
   }
   if (gp) {
-    VD_RETURN_IF_ERROR(ocl::ArapEnergyPartials(ctx, gp, active_->list, active_->neighbours, edge_w_, vol_, x_, rot_,
+    VD_RETURN_IF_ERROR(ocl::ArapEnergyPartials(ctx, gp, active_->neighbours, edge_w_, lattice_.lat.spacing, x_, rot_,
                                                int(m_), kChunk, partials_));
     VD_ASSIGN_OR_RETURN(er, SumPartials(gp));
   }
@@ -291,8 +300,8 @@ StatusOr<SolverSummary> DeviceSolver::Solve(int iterations, bool energies) {
   return s;
 }
 
-Status DeviceSolver::WriteBack(DeviceVolume& v) {
-  return ocl::ScatterState(ops_->ctx(), m_, active_->list, x_, rot_, v.def_pos, v.def_rot);
+Status DeviceSolver::WriteBack(ocl::Buffer<vd_float4>& def_pos, ocl::Buffer<vd_float4>& def_rot) {
+  return ocl::ScatterState(ops_->ctx(), m_, active_->list, x_, rot_, def_pos, def_rot);
 }
 
 }  // namespace vd

@@ -72,15 +72,20 @@ class DeviceSolver {
   // adaptive rigidity, weighs the ARAP edges by its strain).
   Status Setup(const DeviceVolume& v, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
                size_t num_pixels);
+  // The same on any lattice (shared/lattice.h: the dense grid or the pool's bricks), the field
+  // def_pos / def_rot indexed by its entries.
+  Status Setup(const DeviceLattice& lattice, const ocl::Buffer<vd_float4>& def_pos,
+               const ocl::Buffer<vd_float4>& def_rot, const DeviceActiveSet& active,
+               const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels);
   // The two halves of Setup for a grid level without a stored field (coarse levels): constraints
   // grouped by the cells of `vol`, then positions x0 with identity rotations (solved exactly by
   // the first rotation step) or with the warm-start rotations rot0 (refined).
-  Status SetupConstraints(const VdVolume& vol, const DeviceActiveSet& active,
+  Status SetupConstraints(const DeviceLattice& lattice, const DeviceActiveSet& active,
                           const ocl::Buffer<VdCorrespondence>& constraints, size_t n);
   // The other way for a coarse level with cached B^T B: no constraints of its own, its moments
   // filled by the caller from the level below (mutable_moments(), shared/hierarchy.h
   // vd_level_moments), then assembled with its start x0. num_constraints is reported only.
-  Status SetupFromMoments(const VdVolume& vol, const DeviceActiveSet& active, size_t num_constraints);
+  Status SetupFromMoments(const DeviceLattice& lattice, const DeviceActiveSet& active, size_t num_constraints);
   Status AssembleFromMoments(const ocl::Buffer<vd_float4>& x0);
   Status InitState(const ocl::Buffer<vd_float4>& x0);
   Status InitState(const ocl::Buffer<vd_float4>& x0, const ocl::Buffer<vd_float4>& rot0);
@@ -96,14 +101,17 @@ class DeviceSolver {
   // evaluated only when asked for.
   StatusOr<SolverSummary> Solve(int iterations = -1, bool energies = true);
   // Writes positions and rotations back into the grid (counting the optimisation).
-  Status WriteBack(DeviceVolume& v);
+  Status WriteBack(DeviceVolume& v) { return WriteBack(v.def_pos, v.def_rot); }
+  Status WriteBack(ocl::Buffer<vd_float4>& def_pos, ocl::Buffer<vd_float4>& def_rot);
 
   size_t num_constraints() const { return num_constraints_; }
   // The current compact state (tests).
   const ocl::Buffer<vd_float4>& positions() const { return x_; }
   ocl::Buffer<vd_float4>& mutable_positions() { return x_; }
-  // Constraints sorted by cell (num_constraints() of them).
+  // Constraints sorted by cell (num_constraints() of them), and each one's cell (the compact index
+  // of its first corner).
   const ocl::Buffer<VdCorrespondence>& constraints() const { return cons_; }
+  const ocl::Buffer<int32_t>& constraint_cells() const { return cons_cell_; }
   const ocl::Buffer<vd_float4>& rotations() const { return rot_; }
   // Per-cell moments of the cached B^T B (VD_CELL_MOMENT_FLOATS per active point; filled by the
   // caller after SetupFromMoments) and the constraints' cell ranges (m + 1) as Setup left them.
@@ -116,7 +124,12 @@ class DeviceSolver {
 
   DeviceOps* ops_;
   const SolverParams params_;
-  VdVolume vol_{};
+  DeviceLattice lattice_{};
+  // The stored field a fine level's state is gathered from.
+  struct Field {
+    const ocl::Buffer<vd_float4>* def_pos;
+    const ocl::Buffer<vd_float4>* def_rot;
+  };
   const DeviceActiveSet* active_ = nullptr;
   size_t m_ = 0;
   size_t num_constraints_ = 0;
@@ -124,6 +137,7 @@ class DeviceSolver {
   ocl::Buffer<uint32_t> cell_count_;
   ocl::Buffer<uint32_t> cell_start_;
   ocl::Buffer<VdCorrespondence> cons_;
+  ocl::Buffer<int32_t> cons_cell_;
   ocl::Buffer<float> targets_;
   ocl::Buffer<float> residuals_;
   ocl::Buffer<vd_float4> x_, rot_, rest_;
@@ -137,12 +151,12 @@ class DeviceSolver {
   ocl::Buffer<float> edge_w_;
   // edge_w_ holds strain weights (not all 1) in this solve.
   bool adaptive_ = false;
-  // What every level kind needs per active point: vol_, active_, m_, the per-point buffers
+  // What every level kind needs per active point: lattice_, active_, m_, the per-point buffers
   // reserved (the cache's too when cached) and the rest positions.
-  Status SetupPoints(const VdVolume& vol, const DeviceActiveSet& active);
+  Status SetupPoints(const DeviceLattice& lattice, const DeviceActiveSet& active);
   // SetupConstraints with, on the fine level, the field the state is gathered from.
-  Status SetupLevel(const VdVolume& vol, const DeviceActiveSet& active, const ocl::Buffer<VdCorrespondence>& per_pixel,
-                    size_t num_pixels, const DeviceVolume* field);
+  Status SetupLevel(const DeviceLattice& lattice, const DeviceActiveSet& active,
+                    const ocl::Buffer<VdCorrespondence>& per_pixel, size_t num_pixels, const Field* field);
   // rot_ holds rotations near the optimum (the stored field's or a previous rotation step's), so
   // the rotation step may refine them instead of solving from scratch.
   bool rot_warm_ = false;

@@ -196,6 +196,13 @@ void BrickRingAllocate(const uint8_t* surface, uint32_t used, BrickTable* t) {
                            t->capacity, t->pool, t->counters);
 }
 
+void BrickLevelAllocate(const int32_t* list, size_t n, int s, uint32_t used, BrickTable* t) {
+  const std::vector<int32_t> nbr = BrickNeighbours(*t, used);
+  for (size_t k = 0; k < n; ++k)
+    vd_brick_level_allocate(list[k], s, nbr.data(), t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity,
+                            t->pool, t->counters);
+}
+
 ActiveSet SparseActiveSet(const BrickTable& t, uint32_t used, const uint16_t* codes) {
   const McTable& table = GetMcTable();
   const std::vector<int32_t> nbr = BrickNeighbours(t, used);

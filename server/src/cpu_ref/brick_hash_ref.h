@@ -5,6 +5,7 @@
 #include <vector>
 
 #include "cpu_ref/cpu_ref.h"
+#include "shared/hierarchy.h"
 #include "shared/sparse_mesh.h"
 
 namespace vd::cpu {
@@ -57,6 +58,9 @@ McMesh SparseMarchingCubes(const BrickTable& table, uint32_t used, const float* 
 
 // vd_brick_ring_allocate for each of the first `used` slots (surface: one flag per pool voxel).
 void BrickRingAllocate(const uint8_t* surface, uint32_t used, BrickTable* table);
+// The bricks a hierarchy of spacing up to s needs for the n fine active entries (pool indices)
+// `list` (vd_brick_level_allocate), one entry after the other.
+void BrickLevelAllocate(const int32_t* list, size_t n, int s, uint32_t used, BrickTable* table);
 // The active set over the first `used` slots from SparseMarchingCubes' codes: list and compact in
 // pool voxel indices, 6 neighbours per member.
 ActiveSet SparseActiveSet(const BrickTable& table, uint32_t used, const uint16_t* codes);

@@ -172,13 +172,17 @@ ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol) {
   return out;
 }
 
-ActiveSet BuildLevel(const std::vector<int32_t>& fine_list, VdVolume fine, int s, VdVolume coarse) {
-  const int n = coarse.dim_x * coarse.dim_y * coarse.dim_z;
+ActiveSet BuildLevel(VdLattice fine, const int32_t* nbr, const std::vector<int32_t>& fine_list, int s, VdLattice coarse,
+                     size_t entries) {
+  const int n = int(entries);
   std::vector<uint8_t> member(n, 0);
   for (int i : fine_list) {
-    int x, y, z;
-    vd_grid_coords(i, fine, &x, &y, &z);
-    for (int o = 0; o < 8; ++o) member[vd_level_corner_index(x, y, z, s, coarse, o)] = 1;
+    int slot, x, y, z;
+    vd_lattice_point(fine, i, &slot, &x, &y, &z);
+    for (int o = 0; o < 8; ++o) {
+      const int e = vd_level_corner(coarse, nbr, s, slot, x, y, z, o);
+      if (e >= 0) member[e] = 1;
+    }
   }
   ActiveSet out;
   out.compact.assign(n, -1);
@@ -189,35 +193,32 @@ ActiveSet BuildLevel(const std::vector<int32_t>& fine_list, VdVolume fine, int s
   }
   out.neighbours.resize(6 * out.list.size());
   for (size_t k = 0; k < out.list.size(); ++k) {
-    int x, y, z;
-    vd_grid_coords(out.list[k], coarse, &x, &y, &z);
-    vd_active_neighbours_of(out.compact.data(), coarse, x, y, z, &out.neighbours[6 * k]);
+    int slot, x, y, z;
+    vd_lattice_point(coarse, out.list[k], &slot, &x, &y, &z);
+    const int d[6][3] = {{-1, 0, 0}, {1, 0, 0}, {0, -1, 0}, {0, 1, 0}, {0, 0, -1}, {0, 0, 1}};
+    for (int j = 0; j < 6; ++j)
+      out.neighbours[6 * k + j] =
+          vd_lattice_compact(coarse, nbr, out.compact.data(), slot, x + d[j][0], y + d[j][1], z + d[j][2]);
   }
   return out;
 }
 
-void LevelRestrict(const ActiveSet& level, VdVolume coarse, int s, const int32_t* compact_f, VdVolume fine,
-                   const vd_float4* x_f, const vd_float4* rot_f, vd_float4* x0_c, vd_float4* rot_c) {
-  const int m = int(level.list.size());
+void LevelRestrict(VdActive coarse, int m_c, int s, VdActive fine, const vd_float4* x_f, const vd_float4* rot_f,
+                   vd_float4* x0_c, vd_float4* rot_c) {
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < m; ++k)
-    x0_c[k] = vd_level_restrict(k, level.list.data(), coarse, s, compact_f, fine, x_f, rot_f, &rot_c[k]);
+  for (int k = 0; k < m_c; ++k) x0_c[k] = vd_level_restrict(k, coarse, s, fine, x_f, rot_f, &rot_c[k]);
 }
 
-void LevelConstraints(const VdCorrespondence* cons_f, int n, const int32_t* compact_f, VdVolume fine,
-                      const vd_float4* x_f, int s, const int32_t* compact_c, VdVolume coarse, const vd_float4* x0_c,
-                      VdCorrespondence* cons_c) {
+void LevelConstraints(const VdCorrespondence* cons_f, const int32_t* cell_f, int n, VdActive fine, const vd_float4* x_f,
+                      int s, VdActive coarse, const vd_float4* x0_c, VdCorrespondence* cons_c) {
 #pragma omp parallel for schedule(static)
-  for (int c = 0; c < n; ++c)
-    cons_c[c] = vd_level_constraint(cons_f[c], compact_f, fine, x_f, s, compact_c, coarse, x0_c);
+  for (int c = 0; c < n; ++c) cons_c[c] = vd_level_constraint(cons_f[c], cell_f[c], fine, x_f, s, coarse, x0_c);
 }
 
-void LevelProlongate(const std::vector<int32_t>& fine_list, VdVolume fine, int s, const int32_t* compact_c,
-                     VdVolume coarse, const vd_float4* x_c, const vd_float4* x0_c, vd_float4* x_f) {
-  const int m = int(fine_list.size());
+void LevelProlongate(VdActive fine, int m_f, int s, VdActive coarse, const vd_float4* x_c, const vd_float4* x0_c,
+                     vd_float4* x_f) {
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < m; ++k)
-    x_f[k] = x_f[k] + vd_level_prolongate(k, fine_list.data(), fine, s, compact_c, coarse, x_c, x0_c);
+  for (int k = 0; k < m_f; ++k) x_f[k] = x_f[k] + vd_level_prolongate(k, fine, s, coarse, x_c, x0_c);
 }
 
 void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32_t* triangles, int num_triangles,

@@ -7,6 +7,7 @@
 
 #include "shared/correspondence.h"
 #include "shared/icp.h"
+#include "shared/solver.h"
 #include "shared/tsdf.h"
 #include "shared/vd_types.h"
 
@@ -65,16 +66,19 @@ struct ActiveSet {
 ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol);
 
 // A coarse level of the solver's hierarchy (shared/hierarchy.h) at spacing s, from the fine
-// active list: sequential marking and compaction, independent of the device's scan.
-ActiveSet BuildLevel(const std::vector<int32_t>& fine_list, VdVolume fine, int s, VdVolume coarse);
-void LevelRestrict(const ActiveSet& level, VdVolume coarse, int s, const int32_t* compact_f, VdVolume fine,
-                   const vd_float4* x_f, const vd_float4* rot_f, vd_float4* x0_c, vd_float4* rot_c);
-void LevelConstraints(const VdCorrespondence* cons_f, int n, const int32_t* compact_f, VdVolume fine,
-                      const vd_float4* x_f, int s, const int32_t* compact_c, VdVolume coarse, const vd_float4* x0_c,
-                      VdCorrespondence* cons_c);
-// Adds the prolongated coarse increment to every fine active point.
-void LevelProlongate(const std::vector<int32_t>& fine_list, VdVolume fine, int s, const int32_t* compact_c,
-                     VdVolume coarse, const vd_float4* x_c, const vd_float4* x0_c, vd_float4* x_f);
+// active list on lattice `fine` (nbr: the bricks' neighbour slots, null on a dense grid):
+// sequential marking and compaction over the coarse lattice's `entries` entries, independent of
+// the device's scan.
+ActiveSet BuildLevel(VdLattice fine, const int32_t* nbr, const std::vector<int32_t>& fine_list, int s, VdLattice coarse,
+                     size_t entries);
+void LevelRestrict(VdActive coarse, int m_c, int s, VdActive fine, const vd_float4* x_f, const vd_float4* rot_f,
+                   vd_float4* x0_c, vd_float4* rot_c);
+// The n sorted fine constraints (cell_f: their cells) re-expressed on the coarse level.
+void LevelConstraints(const VdCorrespondence* cons_f, const int32_t* cell_f, int n, VdActive fine, const vd_float4* x_f,
+                      int s, VdActive coarse, const vd_float4* x0_c, VdCorrespondence* cons_c);
+// Adds the prolongated coarse increment to every one of the m_f fine active points.
+void LevelProlongate(VdActive fine, int m_f, int s, VdActive coarse, const vd_float4* x_c, const vd_float4* x0_c,
+                     vd_float4* x_f);
 
 struct RasterMaps {
   std::vector<uint64_t> depth_id;

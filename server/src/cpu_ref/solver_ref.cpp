@@ -5,26 +5,23 @@
 
 namespace vd::cpu {
 
-void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, const vd_uint* cell_start, int m,
-                 float* moments) {
+void CellMoments(VdActive a, const VdCorrespondence* cons, const vd_uint* cell_start, int m, float* moments) {
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < m; ++k) vd_cell_moments(k, list, vol, cons, cell_start, moments);
+  for (int k = 0; k < m; ++k) vd_cell_moments(k, a, cons, cell_start, moments);
 }
 
-void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const float* edge_w,
-                 const float* moments, VdSolverWeights w, const vd_float4* x0, int m, float* blocks, int* nbr,
-                 vd_float4* data_rhs, VdMat3* diag_inv) {
+void BtbAssemble(VdActive a, const int* neighbours, const float* edge_w, const float* moments, VdSolverWeights w,
+                 const vd_float4* x0, int m, float* blocks, int* nbr, vd_float4* data_rhs, VdMat3* diag_inv) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k)
-    data_rhs[k] = vd_btb_assemble(k, list, compact, vol, neighbours, edge_w, moments, w, x0, x0 != nullptr ? 1 : 0,
-                                  blocks, nbr, &diag_inv[k]);
+    data_rhs[k] =
+        vd_btb_assemble(k, a, neighbours, edge_w, moments, w, x0, x0 != nullptr ? 1 : 0, blocks, nbr, &diag_inv[k]);
 }
 
-void LevelMoments(const int* list_c, VdVolume coarse, int s, const int* compact_f, VdVolume fine,
-                  const VdCorrespondence* cons, const vd_uint* cell_start, const vd_float4* x_f, int n,
-                  float* moments_c) {
+void LevelMoments(VdActive coarse, int s, VdActive fine, const VdCorrespondence* cons, const vd_uint* cell_start,
+                  const vd_float4* x_f, int n, float* moments_c) {
 #pragma omp parallel for schedule(static)
-  for (int k = 0; k < n; ++k) vd_level_moments(k, list_c, coarse, s, compact_f, fine, cons, cell_start, x_f, moments_c);
+  for (int k = 0; k < n; ++k) vd_level_moments(k, coarse, s, fine, cons, cell_start, x_f, moments_c);
 }
 
 void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q) {
@@ -71,13 +68,13 @@ void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, 
   GroupSums(v, m, 1, partials);
 }
 
-void PcgStart(const int* list, VdVolume vol, const int* neighbours, const float* edge_w, const vd_float4* rot,
+void PcgStart(float spacing, const int* neighbours, const float* edge_w, const vd_float4* rot,
               const vd_float4* data_rhs, VdSolverWeights w, const float* blocks, const int* nbr, const VdMat3* diag_inv,
               const vd_float4* x, int m, vd_float4* r, vd_float4* u, float* partials) {
   std::vector<float> v(m);
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k)
-    v[k] = vd_pcg_start(k, list, vol, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u);
+    v[k] = vd_pcg_start(k, spacing, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u);
   GroupSums(v, m, 1, partials);
 }
 

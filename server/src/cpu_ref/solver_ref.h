@@ -12,14 +12,12 @@ namespace vd::cpu {
 
 // Moments of every cell with constraints (VD_CELL_MOMENT_FLOATS floats per active point; cells
 // without constraints are left as given), for m active points and constraints sorted by cell.
-void CellMoments(const int* list, VdVolume vol, const VdCorrespondence* cons, const vd_uint* cell_start, int m,
-                 float* moments);
+void CellMoments(VdActive a, const VdCorrespondence* cons, const vd_uint* cell_start, int m, float* moments);
 // Per point: 27 blocks (VD_BTB_FLOATS floats) and neighbour indices, the data
 // right-hand side and the inverse diagonal block, from the moments.
 // x0 (read when not null) shifts the right-hand side by (w_d B^T B x0)_k, as on a coarse level.
-void BtbAssemble(const int* list, const int* compact, VdVolume vol, const int* neighbours, const float* edge_w,
-                 const float* moments, VdSolverWeights w, const vd_float4* x0, int m, float* blocks, int* nbr,
-                 vd_float4* data_rhs, VdMat3* diag_inv);
+void BtbAssemble(VdActive a, const int* neighbours, const float* edge_w, const float* moments, VdSolverWeights w,
+                 const vd_float4* x0, int m, float* blocks, int* nbr, vd_float4* data_rhs, VdMat3* diag_inv);
 // q = A d from the cached blocks (edge-weighted ARAP Laplacian, w_d B^T B, damping) for m points.
 void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q);
 // The PCG's passes (shared/solver.h, the Chronopoulos/Gear form) over m points, with partial sums
@@ -32,15 +30,14 @@ void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, 
                  vd_float4* x, vd_float4* r, vd_float4* u, float* partials);
 void PcgScalars(const float* partials, int groups, int mode, float tolerance, float* scal);
 // The start of a position step (vd_pcg_start) over m points, with the singles of b.b.
-void PcgStart(const int* list, VdVolume vol, const int* neighbours, const float* edge_w, const vd_float4* rot,
+void PcgStart(float spacing, const int* neighbours, const float* edge_w, const vd_float4* rot,
               const vd_float4* data_rhs, VdSolverWeights w, const float* blocks, const int* nbr, const VdMat3* diag_inv,
               const vd_float4* x, int m, vd_float4* r, vd_float4* u, float* partials);
 
 // A coarse level's moments from the fine constraints (shared/hierarchy.h; kernel
 // vd_level_moments_kernel), n coarse points.
-void LevelMoments(const int* list_c, VdVolume coarse, int s, const int* compact_f, VdVolume fine,
-                  const VdCorrespondence* cons, const vd_uint* cell_start, const vd_float4* x_f, int n,
-                  float* moments_c);
+void LevelMoments(VdActive coarse, int s, VdActive fine, const VdCorrespondence* cons, const vd_uint* cell_start,
+                  const vd_float4* x_f, int n, float* moments_c);
 
 // Adaptive rigidity (vd_arap_edge_weights_kernel): 6 ARAP edge weights per point for m points.
 void ArapEdgeWeights(const int* neighbours, const vd_float4* x, const vd_float4* rot, const vd_float4* t_hat, int m,

@@ -9,6 +9,7 @@
 
 namespace vd {
 class DeviceOps;
+struct DeviceActiveSet;
 }  // namespace vd
 
 namespace vd::ocl {
@@ -170,6 +171,11 @@ class BrickTable {
   // the active set can hold its one-ring (shared/sparse_mesh.h vd_brick_ring_allocate; after
   // BuildNeighbours). Returns how many bricks it added.
   StatusOr<uint32_t> AllocateRing(Context& ctx, const Buffer<uint8_t>& surface);
+  // Allocates the bricks the coarse levels of the non-rigid solver need (up to spacing s): the
+  // missing +x / +y / +z neighbours that a fine active point's coarse cell reaches into
+  // (shared/hierarchy.h vd_brick_level_allocate; after BuildNeighbours; defined in
+  // hierarchy_ocl.cpp). Returns how many bricks it added.
+  StatusOr<uint32_t> AllocateLevelCorners(Context& ctx, const DeviceActiveSet& fine, int s);
 
  private:
   uint32_t capacity_ = 0, pool_ = 0;

@@ -1,9 +1,43 @@
 // DeviceOps' allocation; its launchers are in the <family>_ocl.cpp of their kernels.
 #include "ocl/device_ops.h"
 
+#include "ocl/brick_hash_ocl.h"
 #include "ocl/mc_table.h"
 
 namespace vd {
+namespace {
+// What a dense lattice passes for the brick buffers.
+const ocl::Buffer<int32_t> kNoNeighbours;
+const ocl::Buffer<uint32_t> kNoKeys;
+}  // namespace
+
+DeviceLattice DeviceLattice::Dense(const VdVolume& vol) {
+  DeviceLattice l;
+  l.lat = vd_lattice_dense(vol);
+  l.nbr = &kNoNeighbours;
+  l.slot_keys = &kNoKeys;
+  return l;
+}
+
+DeviceLattice DeviceLattice::Bricks(const ocl::BrickTable& table, float voxel_size) {
+  DeviceLattice l;
+  l.lat = vd_lattice_bricks(voxel_size, 1);
+  l.nbr = &table.neighbours();
+  l.slot_keys = &table.slot_keys();
+  l.table = &table;
+  return l;
+}
+
+DeviceLattice DeviceLattice::Level(int s) const {
+  DeviceLattice l = *this;
+  l.lat = vd_lattice_level(lat, s);
+  return l;
+}
+
+size_t DeviceLattice::Entries(uint32_t slots) const {
+  const size_t per = size_t(lat.dim_x) * lat.dim_y * lat.dim_z;
+  return lat.bricks ? per * slots : per;
+}
 
 Status DeviceOps::Init() {
   const McTable& t = GetMcTable();

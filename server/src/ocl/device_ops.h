@@ -8,6 +8,7 @@
 #include "ocl/ocl.h"
 #include "shared/correspondence.h"
 #include "shared/icp.h"
+#include "shared/lattice.h"
 #include "shared/raster.h"
 #include "shared/tsdf.h"
 #include "shared/vd_types.h"
@@ -74,6 +75,28 @@ struct DeviceActiveSet {
   // list's members: the next build on the same dims clears the old members and writes the new
   // ones instead of the whole map. dim_x 0: not kept (anyone else who writes compact or list).
   VdVolume kept{};
+};
+
+// The lattice the solver's points live on (shared/lattice.h): the dense grid, or the pool's bricks
+// at one level of the hierarchy. The buffers are the brick table's, not owned; a dense grid passes
+// empty ones (null pointers the kernels never read).
+struct DeviceLattice {
+  VdLattice lat{};
+  // The 27 neighbour slots of each slot (BrickTable::neighbours) and each slot's key.
+  const ocl::Buffer<int32_t>* nbr = nullptr;
+  const ocl::Buffer<uint32_t>* slot_keys = nullptr;
+  // Bricks: the table, whose hash finds a constraint's cell (null on a dense grid).
+  const ocl::BrickTable* table = nullptr;
+
+  static DeviceLattice Dense(const VdVolume& vol);
+  // The fine level on the bricks of `table` (after BuildNeighbours), voxels of voxel_size.
+  static DeviceLattice Bricks(const ocl::BrickTable& table, float voxel_size);
+  // Level `s` (a power of two, at most 8 on bricks) above this fine lattice: a dense grid of s times
+  // the spacing over the same extent, enough points that every fine point lies in a coarse cell;
+  // on bricks the same bricks with 8 / s points a side.
+  DeviceLattice Level(int s) const;
+  // Entries (the size of the per-point arrays: the grid's points, or `slots` bricks' points).
+  size_t Entries(uint32_t slots) const;
 };
 
 class DeviceOps {

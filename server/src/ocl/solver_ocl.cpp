@@ -1,6 +1,8 @@
 // The launchers of kernels/solver.cl that DeviceSolver (core/solver.cpp) calls.
 #include "ocl/solver_ocl.h"
 
+#include "ocl/brick_hash_ocl.h"
+
 namespace vd::ocl {
 
 Status GatherState(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<vd_float4>& def_pos,
@@ -13,66 +15,81 @@ Status ScatterState(Context& ctx, size_t m, const Buffer<int32_t>& list, const B
   return kSolverScatterState(ctx, m, list, x, rot, def_pos, def_rot);
 }
 
-Status RestPositions(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, Buffer<vd_float4>& t_hat) {
-  return kSolverRest(ctx, m, list, vol, t_hat);
+// The five VD_ACTIVE_PARAMS of lattice L and active set a.
+#define VD_ACTIVE_OF(L, a) (L).lat, *(L).nbr, *(L).slot_keys, (a).list, (a).compact
+
+Status RestPositions(Context& ctx, const DeviceLattice& L, const DeviceActiveSet& a, Buffer<vd_float4>& t_hat) {
+  return kSolverRest(ctx, a.count, VD_ACTIVE_OF(L, a), t_hat);
 }
 
-Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& compact,
-                        VdVolume vol, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts) {
-  return kConstraintCount(ctx, n, corr, compact, vol, cell_of, counts);
+Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const DeviceLattice& L,
+                        const DeviceActiveSet& a, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts) {
+  if (!L.lat.bricks) {
+    VdVolume vol{};
+    vol.origin = L.lat.origin;
+    vol.dim_x = L.lat.dim_x;
+    vol.dim_y = L.lat.dim_y;
+    vol.dim_z = L.lat.dim_z;
+    vol.voxel_size = L.lat.spacing;
+    return kConstraintCount(ctx, n, corr, a.compact, vol, cell_of, counts);
+  }
+  // The hash names bricks of VD_BRICK points a side: the fine level's. Coarse levels on bricks take
+  // their systems from the fine constraints (SolverParams::cache_btb_coarse), never their own.
+  if (L.lat.dim_x != VD_BRICK || !L.table)
+    return Unimplemented("constraints of a coarse level on bricks (use the cached coarse systems)");
+  return CountConstraints(ctx, n, corr, *L.table, a.compact, cell_of, counts);
 }
 
 Status SortConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& cell_of,
-                       const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor, Buffer<VdCorrespondence>& sorted) {
-  return kConstraintScatter(ctx, n, corr, cell_of, cell_start, cursor, sorted);
+                       const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor, Buffer<VdCorrespondence>& sorted,
+                       Buffer<int32_t>& sorted_cell) {
+  return kConstraintScatter(ctx, n, corr, cell_of, cell_start, cursor, sorted, sorted_cell);
 }
 
 Status ConstraintTargets(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, Buffer<float>& targets) {
   return kConstraintTargets(ctx, n, cons, targets);
 }
 
-Status DataRhsAndDiagonal(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact,
-                          VdVolume vol, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
+Status DataRhsAndDiagonal(Context& ctx, const DeviceLattice& L, const DeviceActiveSet& a, const Buffer<float>& edge_w,
                           const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start,
                           const Buffer<float>& targets, VdSolverWeights w, Buffer<vd_float4>& data_rhs,
                           Buffer<VdMat3>& diag_inv) {
-  return kSystemDataDiag(ctx, m, list, compact, vol, neighbours, edge_w, cons, cell_start, targets, w, data_rhs,
+  return kSystemDataDiag(ctx, a.count, VD_ACTIVE_OF(L, a), a.neighbours, edge_w, cons, cell_start, targets, w, data_rhs,
                          diag_inv);
 }
 
-Status SystemRhs(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
-                 const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs,
-                 const Buffer<vd_float4>& x_prev, VdSolverWeights w, Buffer<vd_float4>& b) {
-  return kSystemRhs(ctx, m, list, vol, neighbours, edge_w, rot, data_rhs, x_prev, w, b);
+Status SystemRhs(Context& ctx, size_t m, float spacing, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
+                 const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs, const Buffer<vd_float4>& x_prev,
+                 VdSolverWeights w, Buffer<vd_float4>& b) {
+  return kSystemRhs(ctx, m, spacing, neighbours, edge_w, rot, data_rhs, x_prev, w, b);
 }
 
-Status ConstraintResiduals(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, const Buffer<int32_t>& compact,
-                           VdVolume vol, const Buffer<vd_float4>& d, Buffer<float>& r) {
-  return kConstraintResiduals(ctx, n, cons, compact, vol, d, r);
+Status ConstraintResiduals(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons,
+                           const Buffer<int32_t>& sorted_cell, const DeviceLattice& L, const DeviceActiveSet& a,
+                           const Buffer<vd_float4>& d, Buffer<float>& r) {
+  return kConstraintResiduals(ctx, n, cons, sorted_cell, VD_ACTIVE_OF(L, a), d, r);
 }
 
-Status ApplySystem(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                   const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
-                   const Buffer<uint32_t>& cell_start, const Buffer<float>& r, const Buffer<vd_float4>& d,
-                   VdSolverWeights w, Buffer<vd_float4>& q) {
-  return kSystemApply(ctx, m, list, compact, vol, neighbours, edge_w, cons, cell_start, r, d, w, q);
+Status ApplySystem(Context& ctx, const DeviceLattice& L, const DeviceActiveSet& a, const Buffer<float>& edge_w,
+                   const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start, const Buffer<float>& r,
+                   const Buffer<vd_float4>& d, VdSolverWeights w, Buffer<vd_float4>& q) {
+  return kSystemApply(ctx, a.count, VD_ACTIVE_OF(L, a), a.neighbours, edge_w, cons, cell_start, r, d, w, q);
 }
 
-Status BuildBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<VdCorrespondence>& cons,
-                const Buffer<uint32_t>& cell_start, VdSolverWeights w, Buffer<float>& moments, Buffer<float>& blocks,
-                Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
-  VD_RETURN_IF_ERROR(kCellMoments(ctx, m, list, vol, cons, cell_start, moments));
+Status BuildBtb(Context& ctx, const DeviceLattice& L, const DeviceActiveSet& a, const Buffer<float>& edge_w,
+                const Buffer<VdCorrespondence>& cons, const Buffer<uint32_t>& cell_start, VdSolverWeights w,
+                Buffer<float>& moments, Buffer<float>& blocks, Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs,
+                Buffer<VdMat3>& diag_inv) {
+  VD_RETURN_IF_ERROR(kCellMoments(ctx, a.count, VD_ACTIVE_OF(L, a), cons, cell_start, moments));
   // No shift: x0 is not read (any buffer serves).
-  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, moments, w, data_rhs, 0, blocks, nbr, data_rhs,
-                      diag_inv);
+  return kBtbAssemble(ctx, a.count, VD_ACTIVE_OF(L, a), a.neighbours, edge_w, moments, w, data_rhs, 0, blocks, nbr,
+                      data_rhs, diag_inv);
 }
 
-Status AssembleBtb(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<int32_t>& compact, VdVolume vol,
-                   const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w, const Buffer<float>& moments,
-                   VdSolverWeights w, const Buffer<vd_float4>& x0, Buffer<float>& blocks, Buffer<int32_t>& nbr,
-                   Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
-  return kBtbAssemble(ctx, m, list, compact, vol, neighbours, edge_w, moments, w, x0, 1, blocks, nbr, data_rhs,
+Status AssembleBtb(Context& ctx, const DeviceLattice& L, const DeviceActiveSet& a, const Buffer<float>& edge_w,
+                   const Buffer<float>& moments, VdSolverWeights w, const Buffer<vd_float4>& x0, Buffer<float>& blocks,
+                   Buffer<int32_t>& nbr, Buffer<vd_float4>& data_rhs, Buffer<VdMat3>& diag_inv) {
+  return kBtbAssemble(ctx, a.count, VD_ACTIVE_OF(L, a), a.neighbours, edge_w, moments, w, x0, 1, blocks, nbr, data_rhs,
                       diag_inv);
 }
 
@@ -100,16 +117,16 @@ Status DotPartials(Context& ctx, size_t groups, const Buffer<vd_float4>& a, cons
   return kDot4Partial(ctx, groups, a, b, n, chunk, partials);
 }
 
-Status DenseEnergyPartials(Context& ctx, size_t groups, const Buffer<VdCorrespondence>& cons, int n, int chunk,
-                           const Buffer<int32_t>& compact, VdVolume vol, const Buffer<vd_float4>& x,
-                           Buffer<float>& partials) {
-  return kEnergyDensePartial(ctx, groups, cons, n, chunk, compact, vol, x, partials);
+Status DenseEnergyPartials(Context& ctx, size_t groups, const Buffer<VdCorrespondence>& cons,
+                           const Buffer<int32_t>& sorted_cell, int n, int chunk, const DeviceLattice& L,
+                           const DeviceActiveSet& a, const Buffer<vd_float4>& x, Buffer<float>& partials) {
+  return kEnergyDensePartial(ctx, groups, cons, sorted_cell, n, chunk, VD_ACTIVE_OF(L, a), x, partials);
 }
 
-Status ArapEnergyPartials(Context& ctx, size_t groups, const Buffer<int32_t>& list, const Buffer<int32_t>& neighbours,
-                          const Buffer<float>& edge_w, VdVolume vol, const Buffer<vd_float4>& x,
-                          const Buffer<vd_float4>& rot, int n, int chunk, Buffer<float>& partials) {
-  return kEnergyArapPartial(ctx, groups, list, neighbours, edge_w, vol, x, rot, n, chunk, partials);
+Status ArapEnergyPartials(Context& ctx, size_t groups, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
+                          float spacing, const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot, int n, int chunk,
+                          Buffer<float>& partials) {
+  return kEnergyArapPartial(ctx, groups, neighbours, edge_w, spacing, x, rot, n, chunk, partials);
 }
 
 Status ArapEdgeWeights(Context& ctx, size_t m, const Buffer<int32_t>& neighbours, const Buffer<vd_float4>& x,
@@ -132,12 +149,11 @@ Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& blocks, const B
   return kPcgApplyDots(ctx, m, blocks, nbr, r, u, w, partials);
 }
 
-Status PcgStart(Context& ctx, size_t m, const Buffer<int32_t>& list, VdVolume vol, const Buffer<int32_t>& neighbours,
-                const Buffer<float>& edge_w, const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs,
-                VdSolverWeights w, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
-                const Buffer<VdMat3>& diag_inv, const Buffer<vd_float4>& x, Buffer<vd_float4>& r, Buffer<vd_float4>& u,
-                Buffer<float>& partials) {
-  return kPcgStart(ctx, m, list, vol, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u, partials);
+Status PcgStart(Context& ctx, size_t m, float spacing, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,
+                const Buffer<vd_float4>& rot, const Buffer<vd_float4>& data_rhs, VdSolverWeights w,
+                const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<VdMat3>& diag_inv,
+                const Buffer<vd_float4>& x, Buffer<vd_float4>& r, Buffer<vd_float4>& u, Buffer<float>& partials) {
+  return kPcgStart(ctx, m, spacing, neighbours, edge_w, rot, data_rhs, w, blocks, nbr, diag_inv, x, r, u, partials);
 }
 
 Status PcgDots(Context& ctx, size_t m, const Buffer<vd_float4>& r, const Buffer<vd_float4>& u,
