@@ -46,19 +46,21 @@ struct FusedBricks {
   }
 
   // A dense grid over the bricks' bounding box grown by `margin` voxels, its origin on the same
-  // global lattice, with the same frames fused by the CPU reference; *lo: its first point's global
-  // grid coordinates.
+  // global lattice (its first point's coordinates a multiple of `align`), with the same frames fused
+  // by the CPU reference; *lo: its first point's global grid coordinates.
   VdVolume DenseOver(const cpu::BrickTable& ref, int margin, std::vector<float>* tsdf, std::vector<float>* weight,
-                     std::vector<uint32_t>* color, int lo[3]) const {
+                     std::vector<uint32_t>* color, int lo[3], int align = 1) const {
     int hi[3] = {-(1 << 30), -(1 << 30), -(1 << 30)};
     lo[0] = lo[1] = lo[2] = 1 << 30;
     for (uint32_t s = 0; s < counts.used; ++s) {
+      if (ref.slot_keys[s] == VD_BRICK_EMPTY) continue;
       for (int corner : {0, VD_BRICK_VOXELS - 1}) {
         int g[3];
         vd_brick_voxel(ref.slot_keys[s], corner, &g[0], &g[1], &g[2]);
         for (int a = 0; a < 3; ++a) lo[a] = std::min(lo[a], g[a] - margin), hi[a] = std::max(hi[a], g[a] + margin);
       }
     }
+    for (int a = 0; a < 3; ++a) lo[a] = lo[a] >= 0 ? lo[a] / align * align : -((-lo[a] + align - 1) / align) * align;
     VdVolume dense = vol;
     dense.origin = VD_F4(lo[0] * vol.voxel_size, lo[1] * vol.voxel_size, lo[2] * vol.voxel_size, 1.f);
     dense.dim_x = hi[0] - lo[0] + 1, dense.dim_y = hi[1] - lo[1] + 1, dense.dim_z = hi[2] - lo[2] + 1;
