@@ -10,16 +10,17 @@ __kernel void vd_tsdf_integrate(__global float* tsdf, __global float* weight, __
   vd_tsdf_integrate_row(tsdf, weight, color, yz % vol.dim_y, yz / vol.dim_y, vol, cam, world_to_cam, depth, rgba);
 }
 
-/* Non-rigid fusion: one work item per active grid point. */
+/* Non-rigid fusion: one work item per active point (a dense grid's index, or a pool voxel's on the
+ * bricks, whose allocation already says where surface is: mark_touched 0 and touched not read). */
 __kernel void vd_tsdf_integrate_active(__global float* tsdf, __global float* weight, __global uint* color,
-                                       __global uchar* touched, __global const int* list,
+                                       __global uchar* touched, int mark_touched, __global const int* list,
                                        __global const float4* def_pos, VdFusionParams fp, VdVolume vol, VdCamera cam,
                                        VdPose world_to_cam, __global const float* depth, __global const uint* rgba,
                                        int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int gi = list[get_global_id(0)];
   vd_tsdf_integrate_deformed(tsdf, weight, color, gi, def_pos[gi], fp, vol, cam, world_to_cam, depth, rgba);
-  if (weight[gi] > 0.0f) touched[vd_grid_brick_of_index(vol, gi)] = (uchar)1;
+  if (mark_touched && weight[gi] > 0.0f) touched[vd_grid_brick_of_index(vol, gi)] = (uchar)1;
 }
 
 /* touched[b] from brick b's weights (shared/tsdf.h), one work item per brick. */

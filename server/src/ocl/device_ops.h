@@ -163,6 +163,10 @@ class DeviceOps {
   // never fused yet), at their deformed positions, with carving (shared/tsdf.h).
   Status IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active, const VdFusionParams& fp, VdCamera cam,
                          VdPose world_to_cam, const ocl::Buffer<float>& depth, const ocl::Buffer<uint32_t>& rgba);
+  // The same over M on the bricks (pool voxel indices); vol: voxel size, truncation and weight cap.
+  Status IntegrateActive(ocl::BrickPool& pool, const DeviceActiveSet& active, const VdFusionParams& fp, VdVolume vol,
+                         VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
+                         const ocl::Buffer<uint32_t>& rgba);
   // M from the cell codes of the last MarchingCubes() call on v.
   Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out);
   // M over a sparse volume from the last MarchingCubes() call on its bricks: list and compact hold
@@ -187,6 +191,8 @@ class DeviceOps {
   Status SizeActiveSet(size_t rows, DeviceActiveSet* out);
   ocl::Context* ctx_;
   ocl::Buffer<int8_t> mc_tri_table_;
+  // What IntegrateActive on the bricks passes for the touched flags it does not keep (never read).
+  ocl::Buffer<uint8_t> no_touched_;
   ocl::Buffer<uint8_t> mc_tri_counts_;
   // Marching-cubes scratch, one entry per grid point: cell codes, vertex masks, first vertex index.
   ocl::Buffer<uint16_t> mc_codes_;

@@ -1,6 +1,7 @@
 // DeviceOps' launchers of kernels/tsdf.cl (class in ocl/device_ops.h).
 #include "ocl/tsdf_ocl.h"
 
+#include "ocl/brick_hash_ocl.h"
 #include "ocl/device_ops.h"
 
 namespace vd {
@@ -19,7 +20,7 @@ Status DeviceOps::IntegrateTsdf(DeviceVolume& v, VdCamera cam, VdPose world_to_c
       ocl::kBrickMark(*ctx_, bricks, depth_tiles_, cam, world_to_cam, v.vol, brick_flags_, brick_masks_, v.touched));
   uint32_t total = 0;
   VD_RETURN_IF_ERROR(ScanExclusive(brick_flags_, bricks, brick_offsets_, &total));
-  VD_RETURN_IF_ERROR(ocl::kBrickCompact(*ctx_, bricks, brick_flags_, brick_offsets_, brick_list_));
+  VD_RETURN_IF_ERROR(ocl::kDenseBrickCompact(*ctx_, bricks, brick_flags_, brick_offsets_, brick_list_));
   brick_count_ = total;
   return ocl::kTsdfIntegrateBricks(*ctx_, size_t(total) * VD_BRICK_ITEMS, brick_list_, brick_masks_, v.tsdf, v.weight,
                                    v.color, v.vol, cam, world_to_cam, depth, rgba);
@@ -41,8 +42,16 @@ Status DeviceOps::IntegrateActive(DeviceVolume& v, const DeviceActiveSet& active
                                   VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
                                   const ocl::Buffer<uint32_t>& rgba) {
   if (!v.has_deformation()) return FailedPrecondition("IntegrateActive needs a deformation field");
-  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, v.touched, active.list, v.def_pos,
+  return ocl::kTsdfIntegrateActive(*ctx_, active.count, v.tsdf, v.weight, v.color, v.touched, 1, active.list, v.def_pos,
                                    fp, v.vol, cam, world_to_cam, depth, rgba);
+}
+
+Status DeviceOps::IntegrateActive(ocl::BrickPool& pool, const DeviceActiveSet& active, const VdFusionParams& fp,
+                                  VdVolume vol, VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
+                                  const ocl::Buffer<uint32_t>& rgba) {
+  if (!pool.with_field) return FailedPrecondition("IntegrateActive needs a brick pool with a deformation field");
+  return ocl::kTsdfIntegrateActive(*ctx_, active.count, pool.tsdf, pool.weight, pool.color, no_touched_, 0, active.list,
+                                   pool.def_pos, fp, vol, cam, world_to_cam, depth, rgba);
 }
 
 }  // namespace vd

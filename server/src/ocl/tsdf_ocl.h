@@ -15,9 +15,9 @@ inline constexpr Kernel<void(Buffer<float>& tsdf, Buffer<float>& weight, Buffer<
                              const Buffer<uint32_t>& rgba)> kTsdfIntegrate{"vd_tsdf_integrate"};
 // One item per active point.
 inline constexpr Kernel<void(Buffer<float>& tsdf, Buffer<float>& weight, Buffer<uint32_t>& color,
-                             Buffer<uint8_t>& touched, const Buffer<int32_t>& list, const Buffer<vd_float4>& def_pos,
-                             VdFusionParams fp, VdVolume vol, VdCamera cam, VdPose world_to_cam,
-                             const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
+                             Buffer<uint8_t>& touched, int mark_touched, const Buffer<int32_t>& list,
+                             const Buffer<vd_float4>& def_pos, VdFusionParams fp, VdVolume vol, VdCamera cam,
+                             VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
     kTsdfIntegrateActive{"vd_tsdf_integrate_active"};
 // One item per 8x8 pixel tile.
 inline constexpr Kernel<void(const Buffer<float>& depth, VdCamera cam,
@@ -30,8 +30,8 @@ inline constexpr Kernel<void(const Buffer<vd_float4>& tiles, VdCamera cam, VdPos
 inline constexpr Kernel<void(const Buffer<float>& weight, VdVolume vol, Buffer<uint8_t>& touched)> kVolumeTouched{
     "vd_volume_touched"};
 // One item per brick.
-inline constexpr Kernel<void(const Buffer<uint32_t>& flags, const Buffer<uint32_t>& offsets,
-                             Buffer<uint32_t>& list)> kBrickCompact{"vd_brick_compact"};
+inline constexpr Kernel<void(const Buffer<uint32_t>& flags, const Buffer<uint32_t>& offsets, Buffer<uint32_t>& list)>
+    kDenseBrickCompact{"vd_brick_compact"};
 // VD_BRICK_ITEMS items per listed brick.
 inline constexpr Kernel<void(const Buffer<uint32_t>& list, const Buffer<uint32_t>& masks, Buffer<float>& tsdf,
                              Buffer<float>& weight, Buffer<uint32_t>& color, VdVolume vol, VdCamera cam,
