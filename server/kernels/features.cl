@@ -25,20 +25,20 @@ __kernel void vd_match_columns(__global const float* dist, int n_cur, int n_cand
 }
 
 /* Earlier features moved by the current field (world). */
-__kernel void vd_feature_predict_kernel(__global const float4* canonical, __global const float4* def_pos, VdVolume vol,
-                                        __global float4* out, int vd_items) {
+__kernel void vd_feature_predict_kernel(__global const float4* canonical, VD_FIELD_ARGS, __global float4* out,
+                                        int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
-  out[i] = vd_feature_predict(canonical[i], def_pos, vol);
+  out[i] = vd_feature_predict(canonical[i], VD_FIELD_PASS);
 }
 
 /* points[i] = observed world point (w = 1 valid), pixels[i] = its pixel index. */
 __kernel void vd_feature_lift_kernel(__global const float4* points, __global const int* pixels,
                                      __global const uint* ids, __global const float4* bary,
                                      __global const float4* raster_vertex, __global const float4* canon,
-                                     __global const int* tris, __global const float4* def_pos, VdVolume vol,
-                                     VdLiftParams prm, __global float4* out, int vd_items) {
+                                     __global const int* tris, VD_FIELD_ARGS, VdLiftParams prm, __global float4* out,
+                                     int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
-  out[i] = vd_feature_lift(points[i], pixels[i], ids, bary, raster_vertex, canon, tris, def_pos, vol, prm);
+  out[i] = vd_feature_lift(points[i], pixels[i], ids, bary, raster_vertex, canon, tris, VD_FIELD_PASS, prm);
 }

@@ -141,7 +141,7 @@ int main(int argc, char** argv) {
       MatchStats stats;
       const double dev = MedianMs(reps, [&] {
         out.clear();
-        Check(matcher.Match(cur, history, cand, dv, identity, cam, &out, &stats));
+        Check(matcher.Match(cur, history, cand, DeviceField::Dense(dv), identity, cam, &out, &stats));
       });
       // The CPU reference of the same three kernels on the same candidates.
       std::vector<uint8_t> cd;

@@ -178,9 +178,10 @@ TEST(CheckpointTest, TrackedMeshAndLinksRoundTripAndOlderFilesStillLoad) {
   EngineState plain = SmallState(5);
   plain.links.clear();
   const std::string current = EncodeCheckpoint(plain);
-  // Version 3: no sparse flag; version 2: no links array either; version 1: no tracked arrays.
-  for (auto [version, dropped] :
-       {std::pair<uint32_t, size_t>{3, 0}, std::pair<uint32_t, size_t>{2, 1}, std::pair<uint32_t, size_t>{1, 4}}) {
+  // Version 4: the same layout for a dense grid; version 3: no sparse flag; version 2: no links
+  // array either; version 1: no tracked arrays.
+  for (auto [version, dropped] : {std::pair<uint32_t, size_t>{4, 0}, std::pair<uint32_t, size_t>{3, 0},
+                                  std::pair<uint32_t, size_t>{2, 1}, std::pair<uint32_t, size_t>{1, 4}}) {
     auto old = DecodeCheckpoint(AsOlderVersion(current, version, dropped));
     ASSERT_TRUE(old.ok()) << version << ": " << old.status().ToString();
     ExpectSame(plain, *old);
@@ -190,8 +191,8 @@ TEST(CheckpointTest, TrackedMeshAndLinksRoundTripAndOlderFilesStillLoad) {
     }
   }
   // A newer version is refused by name.
-  const std::string v5 = AsOlderVersion(current, 5, 0);
-  EXPECT_NE(DecodeCheckpoint(v5).status().message().find("version 5"), std::string::npos);
+  const std::string v6 = AsOlderVersion(current, 6, 0);
+  EXPECT_NE(DecodeCheckpoint(v6).status().message().find("version 6"), std::string::npos);
 }
 
 // The tube (40-frame take) and two engines at 6 mm: one runs on, the other resumes from its
@@ -508,6 +509,71 @@ TEST(CheckpointTest, SparseVolumeResumesWithIdenticalMeshes) {
   ASSERT_TRUE(d.ok());
   EXPECT_EQ((*d)->RestoreState(saved).code(), StatusCode::kFailedPrecondition);
   EXPECT_FALSE((*d)->has_model());
+}
+
+// A deforming model on the bricks (--sparse-volume without --rigid-only): the field goes with its
+// bricks (format 5), the resumed engine's meshes are identical to the original's, and it goes on
+// like the original.
+TEST(CheckpointTest, SparseVolumeWithFieldResumesWithIdenticalMeshes) {
+  if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  SyntheticOptions so;
+  auto scene = MakeSyntheticScene("tube", so);
+  ASSERT_TRUE(scene.ok());
+  EngineParams p;
+  p.voxel_size = 0.006f;
+  p.sparse_volume = true;
+  auto a = Engine::Create(p, "");
+  auto b = Engine::Create(p, "");
+  ASSERT_TRUE(a.ok() && b.ok());
+  FrameResult last;
+  for (int k = 0; k < 16; k += 3) {
+    auto r = (*a)->Process((*scene)->Render(k));
+    ASSERT_TRUE(r.ok() && r->tracking_ok) << k;
+    last = std::move(r).value();
+  }
+  ASSERT_GT(last.active_voxels, 1000);
+  EngineState saved;
+  ASSERT_TRUE((*a)->SaveState(&saved).ok());
+  ASSERT_TRUE(saved.sparse && saved.has_deformation);
+  ASSERT_EQ(saved.def_pos.size(), saved.tsdf.size());
+  size_t optimised = 0;
+  for (const vd_float4& t : saved.def_pos) optimised += t.w > 0.f;
+  EXPECT_GT(optimised, 1000u) << "the field was solved";
+  const std::string bytes = EncodeCheckpoint(saved);
+  std::printf("sparse checkpoint with field: %zu bricks, %zu optimised points, %zu KiB\n", saved.brick_keys.size(),
+              optimised, bytes.size() >> 10);
+  auto loaded = DecodeCheckpoint(bytes);
+  ASSERT_TRUE(loaded.ok()) << loaded.status().ToString();
+  EXPECT_EQ(loaded->def_pos.size(), saved.def_pos.size());
+  EXPECT_EQ(0, std::memcmp(loaded->def_pos.data(), saved.def_pos.data(), saved.def_pos.size() * sizeof(vd_float4)));
+  FrameResult restored;
+  ASSERT_TRUE((*b)->RestoreState(*loaded, &restored).ok());
+  EXPECT_EQ(restored.live_mesh.positions, last.live_mesh.positions);
+  EXPECT_EQ(restored.live_mesh.triangles, last.live_mesh.triangles);
+  EXPECT_EQ(restored.canonical_mesh.positions, last.canonical_mesh.positions);
+  // Afterwards the two go on alike, as the dense grid's do (ResumedEngineContinuesLikeTheOriginal:
+  // the solver's sums run in no fixed order, so not to the last bit).
+  double worst_t = 0;
+  for (int k = 18; k < 27; k += 3) {
+    const RgbdFrame f = (*scene)->Render(k);
+    auto ra = (*a)->Process(f);
+    auto rb = (*b)->Process(f);
+    ASSERT_TRUE(ra.ok() && rb.ok());
+    ASSERT_TRUE(rb->tracking_ok) << k;
+    worst_t = std::max(worst_t, 1000.0 * (ra->pose.inverse() * rb->pose).topRightCorner<3, 1>().norm());
+    EXPECT_NEAR(double(rb->live_mesh.num_vertices()) / double(ra->live_mesh.num_vertices()), 1.0, 0.01) << k;
+  }
+  std::printf("resumed vs original: worst pose difference %.4f mm\n", worst_t);
+  EXPECT_LT(worst_t, 0.5);
+  // Field arrays that do not match the bricks are refused; a rigid-only sparse engine refuses it.
+  EngineState short_field = saved;
+  short_field.def_rot.pop_back();
+  EXPECT_FALSE(short_field.Validate().ok());
+  EngineParams rigid = p;
+  rigid.rigid_only = true;
+  auto c = Engine::Create(rigid, "");
+  ASSERT_TRUE(c.ok());
+  EXPECT_EQ((*c)->RestoreState(saved).code(), StatusCode::kFailedPrecondition);
 }
 
 // The node: periodic/forced checkpoints, --resume restoring the model and its meshes, a corrupt

@@ -1,5 +1,6 @@
 // The engine on the sparse volume (--sparse-volume, issue 17): rigid tracking and fusion into the
-// brick pool, against the dense grid on the same synthetic scene, and the parameters it refuses.
+// brick pool and the non-rigid path on it, against the dense grid on the same synthetic scene, and
+// the parameters it refuses.
 #include <gtest/gtest.h>
 
 #include <cstdio>
@@ -41,14 +42,49 @@ TEST(SparseVolumeTest, RigidFusionIntoBricksMatchesTheDenseGridInLessMemory) {
   EXPECT_LT(sparse->device_peak_bytes, dense->device_peak_bytes * 3 / 4);
 }
 
+// A deforming model on the bricks: the field (t_i, R_i) lives in the pool, the solver and its
+// hierarchy run on the bricks, and the bending tube is tracked as well as on the dense grid.
+TEST(SparseVolumeTest, NonRigidTubeOnBricksMatchesTheDenseGrid) {
+  if (!test::HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  test::SceneRun run;
+  run.name = "tube";
+  run.stride = 2;
+  const auto dense = test::EvaluateScene(run);
+  ASSERT_TRUE(dense.ok()) << dense.status().ToString();
+  run.params.sparse_volume = true;
+  const auto sparse = test::EvaluateScene(run);
+  ASSERT_TRUE(sparse.ok()) << sparse.status().ToString();
+  std::printf(
+      "tube, 30 frames at 4 mm: dense grid surface mean %.3f / worst %.3f mm, drift %.3f mm, %.1f MB; "
+      "bricks %.3f / %.3f mm, drift %.3f mm, %.1f MB\n",
+      dense->mean_surface_mm, dense->worst_surface_mm, dense->last_drift_mm, dense->device_peak_bytes / 1e6,
+      sparse->mean_surface_mm, sparse->worst_surface_mm, sparse->last_drift_mm, sparse->device_peak_bytes / 1e6);
+  EXPECT_LT(sparse->worst_surface_mm, 1.0);
+  EXPECT_LT(sparse->mean_surface_mm, 1.05 * dense->mean_surface_mm + 0.02);
+  EXPECT_LT(sparse->last_drift_mm, 1.15 * dense->last_drift_mm + 0.1);
+  EXPECT_GT(sparse->mean_active_voxels, 0.9 * dense->mean_active_voxels) << "the same surface is solved";
+  EXPECT_LT(sparse->device_peak_bytes, dense->device_peak_bytes);
+}
+
+TEST(SparseVolumeTest, ParametersTheBricksCannotTakeAreRefused) {
+  EngineParams p;
+  p.sparse_volume = true;
+  EXPECT_TRUE(p.Validate().ok()) << "non-rigid on the bricks";
+  p.solver.levels = 5;
+  Status refused = p.Validate();
+  EXPECT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("at most 4 levels"), std::string::npos) << refused.ToString();
+  p.solver.levels = 3;
+  p.solver.cache_btb_coarse = false;
+  refused = p.Validate();
+  EXPECT_FALSE(refused.ok());
+  EXPECT_NE(refused.message().find("--no-btb-cache-coarse"), std::string::npos) << refused.ToString();
+  p.rigid_only = true;
+  EXPECT_TRUE(p.Validate().ok()) << "a rigid-only run has no solver";
+}
+
 TEST(SparseVolumeTest, AFullPoolIsReportedAndTheServerGoesOn) {
   if (!test::HaveDevice()) GTEST_SKIP() << "no OpenCL device";
-  EngineParams nonrigid;
-  nonrigid.sparse_volume = true;
-  const Status refused = nonrigid.Validate();
-  EXPECT_FALSE(refused.ok());
-  EXPECT_NE(refused.message().find("--rigid-only"), std::string::npos) << refused.ToString();
-
   SyntheticOptions so;
   auto scene = MakeSyntheticScene("rigid", so);
   ASSERT_TRUE(scene.ok()) << scene.status().ToString();

@@ -207,7 +207,7 @@ TEST(FeatureLiftParityTest, NewtonInvertsTheFieldAndMatchesCpu) {
   auto d_field = test::ToDevice(ctx, field);
   auto d_out = test::ToDevice(ctx, std::vector<vd_float4>(n));
   ASSERT_TRUE(ocl::kFeatureLift(*ctx, size_t(n), d_points, d_pixel, d_ids, d_bary, d_rv, d_canon, d_tris, d_field, vol,
-                                lp, d_out)
+                                ocl::Buffer<uint32_t>(), ocl::Buffer<int32_t>(), 0u, ocl::Buffer<int32_t>(), lp, d_out)
                   .ok());
   const auto got = test::FromDevice(ctx, d_out, n);
   int lifted = 0;
@@ -240,7 +240,7 @@ TEST(FeatureLiftParityTest, NewtonInvertsTheFieldAndMatchesCpu) {
   lp.no_model = 1;
   const vd_float4 f = VD_F4(0.013f, -0.021f, 0.47f, 1.f);
   const vd_float4 g = vd_feature_lift(f, -1, ids.data(), bary.data(), raster_v.data(), canon.data(), tris.data(),
-                                      rest.data(), vol, lp);
+                                      rest.data(), vol, nullptr, nullptr, 0u, nullptr, lp);
   EXPECT_EQ(g.w, 1.f);
   EXPECT_NEAR(g.x, (0.013f + 0.12f) / 0.01f, 1e-3f);
   EXPECT_NEAR(g.y, (-0.021f + 0.1f) / 0.01f, 1e-3f);
@@ -260,7 +260,9 @@ TEST(FeaturePredictParityTest, MatchesCpuAndSkipsInvalid) {
   auto d_g = test::ToDevice(ctx, g);
   auto d_field = test::ToDevice(ctx, field);
   auto d_out = test::ToDevice(ctx, std::vector<vd_float4>(g.size()));
-  ASSERT_TRUE(ocl::kFeaturePredict(*ctx, g.size(), d_g, d_field, vol, d_out).ok());
+  ASSERT_TRUE(ocl::kFeaturePredict(*ctx, g.size(), d_g, d_field, vol, ocl::Buffer<uint32_t>(), ocl::Buffer<int32_t>(),
+                                   0u, ocl::Buffer<int32_t>(), d_out)
+                  .ok());
   const auto got = test::FromDevice(ctx, d_out, g.size());
   for (size_t i = 0; i < g.size(); ++i) {
     EXPECT_EQ(got[i].w, ref[i].w) << i;

@@ -15,6 +15,8 @@
 #include "core/hierarchy.h"
 #include "cpu_ref/brick_hash_ref.h"
 #include "cpu_ref/cpu_ref.h"
+#include "cpu_ref/features_ref.h"
+#include "ocl/features_ocl.h"
 #include "ocl/hierarchy_ocl.h"
 #include "shared/active_set.h"
 #include "test_scenes.h"
@@ -329,6 +331,93 @@ TEST_F(SparseSolverParityTest, ActiveFusionOnBricksMatchesTheCpu) {
   std::printf("active fusion on bricks: %zu of %zu members changed weight\n", changed, m);
   EXPECT_GT(changed, m / 3);
   EXPECT_EQ(gated_changed, 0u);
+}
+
+// The feature kernels on the bricks' field (VD_FIELD_ARGS with the table's hash): prediction S(g)
+// and lifting (Newton on S(g) = f) against the CPU, a point whose cell is not allocated moved as
+// at rest, and the lift finding the canonical point again.
+TEST_F(SparseSolverParityTest, FeaturesOnBricksMatchTheCpu) {
+  ocl::Context* ctx = ctx_;
+  const uint32_t used = f_.counts.used;
+  const size_t n = size_t(used) * VD_BRICK_VOXELS;
+  const float h = f_.vol.voxel_size;
+  // A smooth field: every allocated point moved by up to 3 mm.
+  std::vector<vd_float4> field = FromDevice(ctx, f_.pool->def_pos, n);
+  for (vd_float4& t : field) {
+    t.x += 0.003f * std::sin(9.f * t.y);
+    t.y += 0.002f * std::cos(7.f * t.x);
+    t.z += 0.002f;
+  }
+  ASSERT_TRUE(ctx->Upload(f_.pool->def_pos, field.data(), n).ok());
+  const cpu::BrickTable ref = f_.Reference(ctx);
+  const std::vector<int32_t> nbr = FromDevice(ctx, f_.table->neighbours(), size_t(used) * VD_BRICK_NEIGHBOURS);
+  const VdVolume vol = DeviceField::Bricks(*f_.table, *f_.pool, h).vol;
+  // Points on the surface (every 50th mesh vertex, between grid points), one far from any brick,
+  // one invalid.
+  const std::vector<vd_float4> verts = FromDevice(ctx, mesh_.positions_grid, mesh_.num_vertices);
+  std::vector<vd_float4> g;
+  for (size_t i = 0; i < verts.size(); i += 50) g.push_back(VD_F4(verts[i].x, verts[i].y, verts[i].z, 1.f));
+  ASSERT_GT(g.size(), 100u);
+  g.push_back(VD_F4(verts[0].x + 200.5f, verts[0].y, verts[0].z, 1.f));
+  g.push_back(VD_F4(verts[1].x, verts[1].y, verts[1].z, 0.f));
+  const size_t m = g.size();
+  std::vector<vd_float4> want(m);
+  cpu::FeaturePredict(g.data(), int(m), field.data(), vol, want.data(), ref.keys.data(), ref.slots.data(),
+                      f_.table->capacity(), nbr.data());
+  auto d_g = ToDevice(ctx, g);
+  auto d_out = ctx->Alloc<vd_float4>(m);
+  ASSERT_TRUE(d_out.ok());
+  const DeviceField df = DeviceField::Bricks(*f_.table, *f_.pool, h);
+  ASSERT_TRUE(ocl::PredictFeatures(*ctx, m, d_g, df, *d_out).ok());
+  EXPECT_TRUE(test::AllClose(test::Flatten(FromDevice(ctx, *d_out, m)), test::Flatten(want), 1e-6f, 1e-6f));
+  const vd_float4 far = want[m - 2];
+  EXPECT_NEAR(far.x, h * g[m - 2].x, 1e-6f) << "no brick: at rest";
+  EXPECT_EQ(want[m - 1].w, 0.f);
+  EXPECT_GT(std::fabs(want[0].z - h * g[0].z), 0.0015f) << "moved by the field";
+
+  // Lifting the predicted points from their rest position (the first frame's start): Newton finds
+  // the canonical points again.
+  std::vector<vd_float4> points(want.begin(), want.end() - 2);
+  const size_t k = points.size();
+  std::vector<int32_t> pixels(k, -1);
+  VdLiftParams lp{};
+  lp.world_to_cam = test::IdentityPose();
+  lp.max_depth_gap = 0.03f;
+  lp.tolerance = 1e-5f;
+  lp.iterations = 10;
+  lp.no_model = 1;
+  std::vector<vd_float4> lifted(k);
+  const std::vector<uint32_t> ids(1, VD_RASTER_EMPTY);
+  const std::vector<vd_float4> none(1, VD_F4(0.f, 0.f, 0.f, 0.f));
+  const std::vector<int32_t> tris(3, 0);
+  cpu::FeatureLift(points.data(), pixels.data(), int(k), ids.data(), none.data(), none.data(), none.data(), tris.data(),
+                   field.data(), vol, lp, lifted.data(), ref.keys.data(), ref.slots.data(), f_.table->capacity(),
+                   nbr.data());
+  auto d_points = ToDevice(ctx, points);
+  auto d_pixels = ToDevice(ctx, pixels);
+  auto d_ids = ToDevice(ctx, ids);
+  auto d_none = ToDevice(ctx, none);
+  auto d_tris = ToDevice(ctx, tris);
+  auto d_lifted = ctx->Alloc<vd_float4>(k);
+  ASSERT_TRUE(d_lifted.ok());
+  ASSERT_TRUE(
+      ocl::LiftFeatures(*ctx, k, d_points, d_pixels, d_ids, d_none, d_none, d_none, d_tris, df, lp, *d_lifted).ok());
+  const std::vector<vd_float4> got = FromDevice(ctx, *d_lifted, k);
+  size_t found = 0;
+  float worst = 0.f;
+  for (size_t i = 0; i < k; ++i) {
+    ASSERT_EQ(got[i].w, lifted[i].w) << i;
+    EXPECT_NEAR(got[i].x, lifted[i].x, 1e-4f) << i;
+    EXPECT_NEAR(got[i].y, lifted[i].y, 1e-4f) << i;
+    EXPECT_NEAR(got[i].z, lifted[i].z, 1e-4f) << i;
+    if (lifted[i].w != 1.f) continue;
+    ++found;
+    worst = std::max(
+        {worst, std::fabs(lifted[i].x - g[i].x), std::fabs(lifted[i].y - g[i].y), std::fabs(lifted[i].z - g[i].z)});
+  }
+  std::printf("features on bricks: %zu predicted, %zu of %zu lifted, largest error %.4f voxels\n", m, found, k, worst);
+  EXPECT_EQ(found, k);
+  EXPECT_LT(worst, 0.01f);
 }
 
 }  // namespace

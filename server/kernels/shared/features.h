@@ -19,6 +19,7 @@
 
 #include "deformation.h"
 #include "raster.h"
+#include "sparse_field.h"
 #include "svd3.h"
 #include "vd_types.h"
 
@@ -147,29 +148,6 @@ VD_INLINE int vd_match_prune(VdMatchBest m, vd_float4 predicted, vd_float4 obser
   return VD_PRUNE_KEPT;
 }
 
-/* S(g) and its Jacobian dS/dg (metres per grid unit) for a point in grid units, the cell clamped
- * to the grid as in vd_deform_point. */
-VD_INLINE vd_float4 vd_deform_point_jacobian(vd_float4 g, VD_GLOBAL const vd_float4* def_pos, VdVolume vol,
-                                             VdMat3* J) {
-  int cx = vd_min_i(vd_max_i((int)floor(g.x), 0), vol.dim_x - 2);
-  int cy = vd_min_i(vd_max_i((int)floor(g.y), 0), vol.dim_y - 2);
-  int cz = vd_min_i(vd_max_i((int)floor(g.z), 0), vol.dim_z - 2);
-  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
-  vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  *J = vd_mat3_zero();
-  for (int k = 0; k < 8; ++k) {
-    int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
-    float wx = ox ? fx : 1.0f - fx, wy = oy ? fy : 1.0f - fy, wz = oz ? fz : 1.0f - fz;
-    float sx = ox ? 1.0f : -1.0f, sy = oy ? 1.0f : -1.0f, sz = oz ? 1.0f : -1.0f;
-    vd_float4 t = def_pos[cx + ox + vol.dim_x * (cy + oy + vol.dim_y * (cz + oz))];
-    acc = acc + t * (wx * wy * wz);
-    vd_float4 grad = VD_F4(sx * wy * wz, wx * sy * wz, wx * wy * sz, 0.0f);
-    vd_mat3_add_outer(J, t, grad);
-  }
-  acc.w = 1.0f;
-  return acc;
-}
-
 /* Solves a x = b by Cramer's rule; returns 0 when a is (nearly) singular. */
 VD_INLINE int vd_mat3_solve(VdMat3 a, vd_float4 b, vd_float4* x) {
   float det = vd_mat3_det(a);
@@ -203,8 +181,7 @@ typedef struct {
  * result is 1 on success, 0 when the point cannot be lifted. */
 VD_INLINE vd_float4 vd_feature_lift(vd_float4 f, int pix, VD_GLOBAL const vd_uint* ids, VD_GLOBAL const vd_float4* bary,
                                     VD_GLOBAL const vd_float4* raster_vertex, VD_GLOBAL const vd_float4* canon,
-                                    VD_GLOBAL const int* tris, VD_GLOBAL const vd_float4* def_pos, VdVolume vol,
-                                    VdLiftParams p) {
+                                    VD_GLOBAL const int* tris, VD_FIELD_ARGS, VdLiftParams p) {
   vd_float4 fail = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   if (!(f.w > 0.0f)) return fail;
   vd_float4 g;
@@ -222,11 +199,9 @@ VD_INLINE vd_float4 vd_feature_lift(vd_float4 f, int pix, VD_GLOBAL const vd_uin
     g = canon[tris[3 * t]] * b.x + canon[tris[3 * t + 1]] * b.y + canon[tris[3 * t + 2]] * b.z;
   }
   for (int it = 0; it < p.iterations; ++it) {
-    if (!(g.x >= 0.0f && g.y >= 0.0f && g.z >= 0.0f && g.x <= (float)(vol.dim_x - 1) &&
-          g.y <= (float)(vol.dim_y - 1) && g.z <= (float)(vol.dim_z - 1)))
-      return fail;
+    if (!vd_field_contains(g, vol, keys)) return fail;
     VdMat3 J;
-    vd_float4 s = vd_deform_point_jacobian(g, def_pos, vol, &J);
+    vd_float4 s = vd_field_deform(g, VD_FIELD_PASS, &J);
     vd_float4 r = f - s;
     r.w = 0.0f;
     if (vd_dot3(r, r) <= p.tolerance * p.tolerance) {
@@ -239,10 +214,9 @@ VD_INLINE vd_float4 vd_feature_lift(vd_float4 f, int pix, VD_GLOBAL const vd_uin
     g.w = 0.0f;
   }
   /* Converged on the last step? */
-  if (!(g.x >= 0.0f && g.y >= 0.0f && g.z >= 0.0f && g.x <= (float)(vol.dim_x - 1) && g.y <= (float)(vol.dim_y - 1) &&
-        g.z <= (float)(vol.dim_z - 1)))
-    return fail;
-  vd_float4 s = vd_deform_point(g, def_pos, vol);
+  if (!vd_field_contains(g, vol, keys)) return fail;
+  VdMat3 J;
+  vd_float4 s = vd_field_deform(g, VD_FIELD_PASS, &J);
   vd_float4 r = f - s;
   if (vd_dot3(r, r) <= p.tolerance * p.tolerance) {
     g.w = 1.0f;
@@ -252,9 +226,10 @@ VD_INLINE vd_float4 vd_feature_lift(vd_float4 f, int pix, VD_GLOBAL const vd_uin
 }
 
 /* A canonical feature moved by the current field (world, w = 1), or w = 0 for an invalid one. */
-VD_INLINE vd_float4 vd_feature_predict(vd_float4 g, VD_GLOBAL const vd_float4* def_pos, VdVolume vol) {
+VD_INLINE vd_float4 vd_feature_predict(vd_float4 g, VD_FIELD_ARGS) {
   if (!(g.w > 0.0f)) return VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  return vd_deform_point(g, def_pos, vol);
+  VdMat3 J;
+  return vd_field_deform(g, VD_FIELD_PASS, &J);
 }
 
 #endif /* VD_FEATURES_H */

@@ -49,9 +49,19 @@ VD_INLINE int vd_brick_locate(int cx, int cy, int cz, VD_GLOBAL const vd_uint* k
   return vd_brick_coords_valid(bx, by, bz) ? vd_brick_find(keys, slots, capacity, vd_brick_pack(bx, by, bz)) : -1;
 }
 
+/* t_i of corner (cx + ox, cy + oy, cz + oz) of a cell whose base corner is local point (lx, ly, lz)
+ * of `slot` (-1: not allocated): its t_i, or its rest position where its brick is not allocated
+ * (it was never deformed). */
+VD_INLINE vd_float4 vd_sparse_corner(int slot, int lx, int ly, int lz, int cx, int cy, int cz, int ox, int oy, int oz,
+                                     VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
+  int j = slot >= 0 ? vd_brick_voxel_at(nbr, slot, lx + ox, ly + oy, lz + oz) : -1;
+  return j >= 0
+             ? def_pos[j]
+             : VD_F4(voxel_size * (float)(cx + ox), voxel_size * (float)(cy + oy), voxel_size * (float)(cz + oz), 0.0f);
+}
+
 /* S(x) for a point in global grid coordinates g (as marching cubes over the bricks emits vertices):
- * the trilinear blend of its cell's 8 corners' t_i; a corner whose brick is not allocated holds its
- * rest position (it was never deformed). w = 1. */
+ * the trilinear blend of its cell's 8 corners' t_i (vd_sparse_corner). w = 1. */
 VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
                                            vd_uint capacity, VD_GLOBAL const int* nbr,
                                            VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
@@ -63,14 +73,56 @@ VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint*
   for (int k = 0; k < 8; ++k) {
     int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
     float a = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
-    int j = slot >= 0 ? vd_brick_voxel_at(nbr, slot, lx + ox, ly + oy, lz + oz) : -1;
-    vd_float4 t = j >= 0 ? def_pos[j]
-                         : VD_F4(voxel_size * (float)(cx + ox), voxel_size * (float)(cy + oy),
-                                 voxel_size * (float)(cz + oz), 0.0f);
-    acc = acc + t * a;
+    acc = acc + vd_sparse_corner(slot, lx, ly, lz, cx, cy, cz, ox, oy, oz, nbr, def_pos, voxel_size) * a;
   }
   acc.w = 1.0f;
   return acc;
+}
+
+/* A deformation field as the feature kernels read it: a dense grid's (keys null: t_i at grid index,
+ * vol its grid) or the brick pool's (keys, slots, capacity: the table's hash; nbr: its neighbour
+ * table; vol.voxel_size the voxel, points in global grid coordinates). */
+#define VD_FIELD_ARGS                                                                                          \
+  VD_GLOBAL const vd_float4 *def_pos, VdVolume vol, VD_GLOBAL const vd_uint *keys, VD_GLOBAL const int *slots, \
+      vd_uint capacity, VD_GLOBAL const int *nbr
+#define VD_FIELD_PASS def_pos, vol, keys, slots, capacity, nbr
+
+/* S(g) and its Jacobian dS/dg (metres per grid unit) for a point in grid units: on a dense grid the
+ * cell clamped to the grid as in vd_deform_point, on the bricks vd_sparse_deform_point's. */
+VD_INLINE vd_float4 vd_field_deform(vd_float4 g, VD_FIELD_ARGS, VdMat3* J) {
+  int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
+  int slot = -1, lx = 0, ly = 0, lz = 0;
+  if (keys) {
+    slot = vd_brick_locate(cx, cy, cz, keys, slots, capacity, &lx, &ly, &lz);
+  } else {
+    cx = vd_min_i(vd_max_i(cx, 0), vol.dim_x - 2);
+    cy = vd_min_i(vd_max_i(cy, 0), vol.dim_y - 2);
+    cz = vd_min_i(vd_max_i(cz, 0), vol.dim_z - 2);
+  }
+  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
+  vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  *J = vd_mat3_zero();
+  for (int k = 0; k < 8; ++k) {
+    int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
+    float wx = ox ? fx : 1.0f - fx, wy = oy ? fy : 1.0f - fy, wz = oz ? fz : 1.0f - fz;
+    float sx = ox ? 1.0f : -1.0f, sy = oy ? 1.0f : -1.0f, sz = oz ? 1.0f : -1.0f;
+    vd_float4 t = keys ? vd_sparse_corner(slot, lx, ly, lz, cx, cy, cz, ox, oy, oz, nbr, def_pos, vol.voxel_size)
+                       : def_pos[cx + ox + vol.dim_x * (cy + oy + vol.dim_y * (cz + oz))];
+    acc = acc + t * (wx * wy * wz);
+    vd_float4 grad = VD_F4(sx * wy * wz, wx * sy * wz, wx * wy * sz, 0.0f);
+    vd_mat3_add_outer(J, t, grad);
+  }
+  acc.w = 1.0f;
+  return acc;
+}
+
+/* Whether S may be evaluated at g: inside a dense grid; anywhere a brick may be on the bricks. */
+VD_INLINE int vd_field_contains(vd_float4 g, VdVolume vol, VD_GLOBAL const vd_uint* keys) {
+  if (keys)
+    return vd_brick_coords_valid((int)floor(g.x / (float)VD_BRICK), (int)floor(g.y / (float)VD_BRICK),
+                                 (int)floor(g.z / (float)VD_BRICK));
+  return g.x >= 0.0f && g.y >= 0.0f && g.z >= 0.0f && g.x <= (float)(vol.dim_x - 1) && g.y <= (float)(vol.dim_y - 1) &&
+         g.z <= (float)(vol.dim_z - 1);
 }
 
 /* vd_cell_corners on the bricks: the compact indices (compact: pool voxel -> active index) of the 8

@@ -22,8 +22,9 @@ namespace {
 constexpr char kMagic[8] = {'V', 'D', 'C', 'K', 'P', 'T', '0', '1'};
 // 2: the tracked mesh after the keyframes. 3: the feature links after the tracked mesh. 4: a sparse
 // flag after the deformation flag; a sparse volume stores its bricks by key where the dense grid
-// stores its brick list. Version 1 to 3 files (no tracked mesh, no links, dense) are still read.
-constexpr uint32_t kFormatVersion = 4;
+// stores its brick list. 5: a sparse volume may hold the deformation field (t_i and R_i after each
+// voxel's colour). Version 1 to 4 files (no tracked mesh, no links, dense or rigid) are still read.
+constexpr uint32_t kFormatVersion = 5;
 constexpr size_t kBrickVoxels = 512;
 // Bricks a sparse checkpoint may declare (2^28 is the most a brick table holds).
 constexpr size_t kMaxBricks = size_t(1) << 28;
@@ -150,12 +151,13 @@ Status SyncFile(const std::string& path) {
 
 Status EngineState::Validate() const {
   if (sparse) {
-    if (has_deformation) return InvalidArgument("checkpoint of a sparse volume with a deformation field");
     if (!(vol.voxel_size > 0.f && vol.voxel_size < 1.f) || !(vol.truncation > 0.f) || !(vol.max_weight > 0.f))
       return InvalidArgument("checkpoint volume parameters are invalid");
     const size_t n = brick_keys.size() * kBrickVoxels;
     if (brick_keys.size() > kMaxBricks || tsdf.size() != n || weight.size() != n || color.size() != n)
       return InvalidArgument("checkpoint brick arrays do not match its bricks");
+    if (has_deformation ? (def_pos.size() != n || def_rot.size() != n) : (!def_pos.empty() || !def_rot.empty()))
+      return InvalidArgument("checkpoint deformation arrays do not match its bricks");
     std::vector<uint32_t> sorted = brick_keys;
     std::sort(sorted.begin(), sorted.end());
     if (std::adjacent_find(sorted.begin(), sorted.end()) != sorted.end())
@@ -230,6 +232,10 @@ std::string EncodeCheckpoint(const EngineState& s) {
       w.Put(s.tsdf[i]);
       w.Put(s.weight[i]);
       w.Put(s.color[i]);
+      if (s.has_deformation) {
+        w.Put(s.def_pos[i]);
+        w.Put(s.def_rot[i]);
+      }
     }
   }
   // Bricks holding anything but reset values, each stored whole (none for a sparse volume).
@@ -318,17 +324,24 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
   VD_RETURN_IF_ERROR(r.Get(&s.last_seq, "last_seq"));
   VD_RETURN_IF_ERROR(r.GetString(&s.source_id, "source_id"));
   if (s.sparse) {
-    if (s.has_deformation) return DataLoss("checkpoint of a sparse volume with a deformation field");
+    if (s.has_deformation && version < 5) return DataLoss("checkpoint of a sparse volume with a deformation field");
     VD_RETURN_IF_ERROR(r.GetVector(&s.brick_keys, kMaxBricks, "brick keys"));
     const size_t voxels = s.brick_keys.size() * kBrickVoxels;
-    if (voxels > r.remaining() / 12) return DataLoss("checkpoint declares more bricks than it holds");
+    const size_t voxel_bytes = s.has_deformation ? 12 + 2 * sizeof(vd_float4) : 12;
+    if (voxels > r.remaining() / voxel_bytes) return DataLoss("checkpoint declares more bricks than it holds");
     s.tsdf.resize(voxels);
     s.weight.resize(voxels);
     s.color.resize(voxels);
+    s.def_pos.resize(s.has_deformation ? voxels : 0);
+    s.def_rot.resize(s.has_deformation ? voxels : 0);
     for (size_t i = 0; i < voxels; ++i) {
       VD_RETURN_IF_ERROR(r.Get(&s.tsdf[i], "tsdf"));
       VD_RETURN_IF_ERROR(r.Get(&s.weight[i], "weight"));
       VD_RETURN_IF_ERROR(r.Get(&s.color[i], "color"));
+      if (s.has_deformation) {
+        VD_RETURN_IF_ERROR(r.Get(&s.def_pos[i], "def_pos"));
+        VD_RETURN_IF_ERROR(r.Get(&s.def_rot[i], "def_rot"));
+      }
     }
   } else if (s.vol.dim_x < 2 || s.vol.dim_y < 2 || s.vol.dim_z < 2 || s.num_voxels() > kMaxVoxels) {
     return DataLoss("checkpoint grid dimensions are out of range");
@@ -341,7 +354,7 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
     s.color.assign(n, 0u);
   }
   const BrickGrid grid(s.vol);
-  if (s.has_deformation) {
+  if (s.has_deformation && !s.sparse) {
     s.def_pos.resize(n);
     s.def_rot.assign(n, vd_float4{0.f, 0.f, 0.f, 1.f});
     for (size_t b = 0; b < grid.count(); ++b)

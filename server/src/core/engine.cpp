@@ -181,8 +181,12 @@ Status EngineParams::Validate() const {
     return ParamOutOfBounds("EngineParams", "carve_rate", carve_rate, "0 <= carve_rate < 1");
   if (!(carve_radius >= 0 && carve_radius <= 8))
     return ParamOutOfBounds("EngineParams", "carve_radius", carve_radius, "0 <= carve_radius <= 8");
-  if (sparse_volume && !rigid_only)
-    return InvalidArgument("--sparse-volume needs --rigid-only: the deformation field is not on bricks yet");
+  if (sparse_volume && !rigid_only && solver.levels > 4)
+    return InvalidArgument("--sparse-volume: on bricks of 8 voxels the solver has at most 4 levels (--levels " +
+                           std::to_string(solver.levels) + ")");
+  if (sparse_volume && !rigid_only && solver.levels > 1 && !solver.cache_btb_coarse)
+    return InvalidArgument(
+        "--sparse-volume solves the coarse levels from cached B^T B blocks: drop --no-btb-cache-coarse");
   VD_RETURN_IF_ERROR(solver.Validate());
   VD_RETURN_IF_ERROR(features.Validate());
   return Status::Ok();
@@ -322,6 +326,7 @@ Status Engine::TakeMaps(const RgbdFrame& frame) {
 }
 
 Status Engine::DownloadDeformation(std::vector<vd_float4>* def_pos) {
+  if (bricks_) return Unimplemented("the sparse volume's field is per brick: there is no grid to download");
   if (!volume_.has_deformation()) return FailedPrecondition("the grid has no deformation field");
   def_pos->resize(volume_.num_voxels());
   return ctx_->Download(volume_.def_pos, def_pos->data(), def_pos->size());
@@ -331,8 +336,10 @@ Status Engine::SaveState(EngineState* state) {
   if (!initialised_) return FailedPrecondition("no model yet: nothing to save");
   EngineState& s = *state;
   s.vol = volume_.vol;
-  s.has_deformation = volume_.has_deformation();
+  s.has_deformation = has_field();
   s.sparse = bricks_.has_value();
+  s.def_pos.clear();
+  s.def_rot.clear();
   s.brick_keys.clear();
   if (s.sparse) {
     // Every slot handed out, in slot order, with its voxels.
@@ -346,12 +353,16 @@ Status Engine::SaveState(EngineState* state) {
     VD_RETURN_IF_ERROR(ctx_->Download(pool_->tsdf, s.tsdf.data(), n));
     VD_RETURN_IF_ERROR(ctx_->Download(pool_->weight, s.weight.data(), n));
     VD_RETURN_IF_ERROR(ctx_->Download(pool_->color, s.color.data(), n));
+    if (s.has_deformation) {
+      s.def_pos.resize(n);
+      s.def_rot.resize(n);
+      VD_RETURN_IF_ERROR(ctx_->Download(pool_->def_pos, s.def_pos.data(), n));
+      VD_RETURN_IF_ERROR(ctx_->Download(pool_->def_rot, s.def_rot.data(), n));
+    }
   } else {
     VD_RETURN_IF_ERROR(DownloadVolume(&s.tsdf, &s.weight, &s.color));
   }
-  s.def_pos.clear();
-  s.def_rot.clear();
-  if (s.has_deformation) {
+  if (s.has_deformation && !s.sparse) {
     s.def_pos.resize(volume_.num_voxels());
     s.def_rot.resize(volume_.num_voxels());
     VD_RETURN_IF_ERROR(ctx_->Download(volume_.def_pos, s.def_pos.data(), s.def_pos.size()));
@@ -394,6 +405,9 @@ Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
     if (restored.ok()) restored = ctx_->Upload(pool_->tsdf, s.tsdf.data(), n);
     if (restored.ok()) restored = ctx_->Upload(pool_->weight, s.weight.data(), n);
     if (restored.ok()) restored = ctx_->Upload(pool_->color, s.color.data(), n);
+    if (restored.ok() && s.has_deformation) restored = ctx_->Upload(pool_->def_pos, s.def_pos.data(), n);
+    if (restored.ok() && s.has_deformation) restored = ctx_->Upload(pool_->def_rot, s.def_rot.data(), n);
+    bricks_in_use_ = uint32_t(bricks);
     if (!restored.ok()) {
       Reset();
       return restored;
@@ -484,8 +498,8 @@ Status Engine::FixTracked(const TriangleMesh& source) {
     const float* p = &source.positions[3 * i];
     grid[i] = VD_F4((p[0] - vol.origin.x) / vol.voxel_size, (p[1] - vol.origin.y) / vol.voxel_size,
                     (p[2] - vol.origin.z) / vol.voxel_size, 1.f);
-    outside += grid[i].x < 0 || grid[i].y < 0 || grid[i].z < 0 || grid[i].x > vol.dim_x - 1 ||
-               grid[i].y > vol.dim_y - 1 || grid[i].z > vol.dim_z - 1;
+    outside += !bricks_ && (grid[i].x < 0 || grid[i].y < 0 || grid[i].z < 0 || grid[i].x > vol.dim_x - 1 ||
+                            grid[i].y > vol.dim_y - 1 || grid[i].z > vol.dim_z - 1);
   }
   if (outside > 0)
     VD_LOG_WARNING << "tracked mesh: " << outside << " of " << nv
@@ -512,7 +526,9 @@ Status Engine::ExtractTracked(FrameResult* result) {
   result->tracked_mesh.triangles = tracked_canonical_.triangles;
   result->tracked_mesh.colors = tracked_canonical_.colors;
   const size_t nv = tracked_.num_vertices;
-  if (volume_.has_deformation()) {
+  if (bricks_ && pool_->with_field) {
+    VD_RETURN_IF_ERROR(ops_.DeformVertices(*bricks_, *pool_, volume_.vol.voxel_size, &tracked_));
+  } else if (volume_.has_deformation()) {
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &tracked_));
   } else {
     VD_RETURN_IF_ERROR(ops_.GridToWorld(volume_.vol, &tracked_));
@@ -728,7 +744,9 @@ Status Engine::ExtractMesh(FrameResult* result) {
   } else {
     VD_RETURN_IF_ERROR(ops_.MarchingCubes(volume_, &mesh_));
   }
-  if (volume_.has_deformation()) {
+  if (bricks_ && pool_->with_field) {
+    VD_RETURN_IF_ERROR(ops_.DeformVertices(*bricks_, *pool_, volume_.vol.voxel_size, &mesh_));
+  } else if (volume_.has_deformation()) {
     VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
   } else {
     VD_RETURN_IF_ERROR(ops_.GridToWorld(volume_.vol, &mesh_));
@@ -786,15 +804,25 @@ Status Engine::ExtractMesh(FrameResult* result) {
 
 Eigen::Matrix4d Engine::FieldRigidMotion(const std::vector<vd_float4>& deformed, const std::vector<int32_t>& list,
                                          const VdVolume& vol, double* rms_motion, double* rms_residual) {
+  std::vector<vd_float4> rest(std::min(list.size(), deformed.size()), VD_F4(0.f, 0.f, 0.f, 0.f));
+  for (size_t k = 0; k < rest.size(); ++k) {
+    if (list[k] < 0) continue;
+    int x, y, z;
+    vd_grid_coords(list[k], vol, &x, &y, &z);
+    rest[k] = vd_rest_position(vol, x, y, z);
+    rest[k].w = 1.f;
+  }
+  return FieldRigidMotion(deformed, rest, rms_motion, rms_residual);
+}
+
+Eigen::Matrix4d Engine::FieldRigidMotion(const std::vector<vd_float4>& deformed, const std::vector<vd_float4>& rest,
+                                         double* rms_motion, double* rms_residual) {
   *rms_motion = 0.0;
   *rms_residual = 0.0;
   std::vector<Eigen::Vector3d> from, to;
-  for (size_t k = 0; k < list.size() && k < deformed.size(); ++k) {
-    if (!(deformed[k].w > 0.f) || list[k] < 0) continue;
-    int x, y, z;
-    vd_grid_coords(list[k], vol, &x, &y, &z);
-    const vd_float4 g = vd_rest_position(vol, x, y, z);
-    from.emplace_back(g.x, g.y, g.z);
+  for (size_t k = 0; k < rest.size() && k < deformed.size(); ++k) {
+    if (!(deformed[k].w > 0.f) || !(rest[k].w > 0.f)) continue;
+    from.emplace_back(rest[k].x, rest[k].y, rest[k].z);
     to.emplace_back(deformed[k].x, deformed[k].y, deformed[k].z);
   }
   if (from.size() < 4) return Eigen::Matrix4d::Identity();
@@ -816,14 +844,28 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
   if (m < 4) return Status::Ok();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&factor_pos_, m));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&factor_rot_, m));
-  VD_RETURN_IF_ERROR(
-      ocl::GatherState(*ctx_, m, active_.list, volume_.def_pos, volume_.def_rot, factor_pos_, factor_rot_));
+  ocl::Buffer<vd_float4>& def_pos = bricks_ ? pool_->def_pos : volume_.def_pos;
+  ocl::Buffer<vd_float4>& def_rot = bricks_ ? pool_->def_rot : volume_.def_rot;
+  VD_RETURN_IF_ERROR(ocl::GatherState(*ctx_, m, active_.list, def_pos, def_rot, factor_pos_, factor_rot_));
   factor_host_.resize(m);
   factor_list_.resize(m);
   VD_RETURN_IF_ERROR(ctx_->Download(factor_pos_, factor_host_.data(), m));
   VD_RETURN_IF_ERROR(ctx_->Download(active_.list, factor_list_.data(), m));
   double rms = 0.0, residual = 0.0;
-  const Eigen::Matrix4d a = FieldRigidMotion(factor_host_, factor_list_, volume_.vol, &rms, &residual);
+  Eigen::Matrix4d a;
+  if (bricks_) {
+    // Rest positions from the members' brick keys (pool voxel indices).
+    std::vector<uint32_t> keys(bricks_in_use_);
+    VD_RETURN_IF_ERROR(ctx_->Download(bricks_->slot_keys(), keys.data(), keys.size()));
+    std::vector<vd_float4> rest(m);
+    for (size_t k = 0; k < m; ++k) {
+      rest[k] = vd_pool_rest_position(keys.data(), factor_list_[k], volume_.vol.voxel_size);
+      rest[k].w = 1.f;
+    }
+    a = FieldRigidMotion(factor_host_, rest, &rms, &residual);
+  } else {
+    a = FieldRigidMotion(factor_host_, factor_list_, volume_.vol, &rms, &residual);
+  }
   // A field whose non-rigid rest is under half a voxel is a static scene's (its noise: 0.6-0.8 mm on
   // the rigid scene at 4 mm); a deforming one (10-30 mm on the tube and the cloth) keeps its rigid
   // part, so the pose stays the camera's there.
@@ -831,8 +873,12 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
   // t' = A^-1 t, R' = R_A^-1 R, and the pose A^-1 pose: the camera sees every point where it did.
   const Eigen::Matrix4d a_inv = a.inverse();
   const Eigen::Quaterniond q(Eigen::Matrix3d(a_inv.topLeftCorner<3, 3>()));
-  VD_RETURN_IF_ERROR(
-      ops_.TransformField(volume_, ToVdPose(a_inv), VD_F4(float(q.x()), float(q.y()), float(q.z()), float(q.w()))));
+  const vd_float4 q_a = VD_F4(float(q.x()), float(q.y()), float(q.z()), float(q.w()));
+  if (bricks_) {
+    VD_RETURN_IF_ERROR(ops_.TransformField(*pool_, ToVdPose(a_inv), q_a));
+  } else {
+    VD_RETURN_IF_ERROR(ops_.TransformField(volume_, ToVdPose(a_inv), q_a));
+  }
   pose_ = a_inv * pose_;
   result->pose = pose_;
   return Status::Ok();
@@ -840,9 +886,15 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
 
 Status Engine::NonRigid(FrameResult* result) {
   // M from the surface extracted after the last frame; new members start from the field.
-  VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_));
-  VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
-  VD_RETURN_IF_ERROR(solver_->Prepare(volume_, active_));
+  if (bricks_) {
+    VD_RETURN_IF_ERROR(PrepareBricks(result));
+    VD_RETURN_IF_ERROR(
+        solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, active_));
+  } else {
+    VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_));
+    VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
+    VD_RETURN_IF_ERROR(solver_->Prepare(volume_, active_));
+  }
   const size_t pixels = static_cast<size_t>(cam_.width) * cam_.height;
   // E_sparse: each match as three axis rows after the per-pixel constraints (weight w_s / w_d).
   sparse_host_.clear();
@@ -859,12 +911,22 @@ Status Engine::NonRigid(FrameResult* result) {
   const VdPose world_to_cam = ToVdPose(pose_.inverse());
   for (int outer = 0; outer < params_.nonrigid_outer_iterations; ++outer) {
     // The deformed mesh at the current pose: each pixel pairs a model sample with its observation.
-    VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
+    if (bricks_) {
+      VD_RETURN_IF_ERROR(ops_.DeformVertices(*bricks_, *pool_, volume_.vol.voxel_size, &mesh_));
+    } else {
+      VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
+    }
     VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
     VD_RETURN_IF_ERROR(ops_.Correspondences(live_, maps_.vmap[0], maps_.nmap[0], mesh_, cp, corr_));
     const bool energies = nonrigid_solves_++ % params_.solver.energy_interval == 0;
-    VD_ASSIGN_OR_RETURN(SolverSummary summary, solver_->Solve(volume_, corr_, total, energies));
-    VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
+    SolverSummary summary;
+    if (bricks_) {
+      VD_ASSIGN_OR_RETURN(summary, solver_->Solve(pool_->def_pos, pool_->def_rot, corr_, total, energies));
+      VD_RETURN_IF_ERROR(solver_->WriteBack(pool_->def_pos, pool_->def_rot));
+    } else {
+      VD_ASSIGN_OR_RETURN(summary, solver_->Solve(volume_, corr_, total, energies));
+      VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
+    }
     if (energies) {
       if (!result->energies_evaluated) result->energy_initial = summary.energy_initial;
       result->energy_final = summary.energy_final;
@@ -892,7 +954,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   result.times[Stage::kPreprocess] = MsSince(t0);
 
   // The field exists, has been fused into and has a surface: the non-rigid path runs.
-  const bool nonrigid = initialised_ && volume_.has_deformation() && frames_fused_ > 0 && mesh_.num_triangles > 0;
+  const bool nonrigid = initialised_ && has_field() && frames_fused_ > 0 && mesh_.num_triangles > 0;
   FrameFeatures features;
   matches_.clear();
   if (sparse) {
@@ -905,7 +967,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     if (nonrigid && history_.num_frames() > 0) {
       t0 = Clock::now();
       MatchStats stats;
-      VD_RETURN_IF_ERROR(matcher_.Match(features, history_, history_.Candidates(params_.features), volume_,
+      VD_RETURN_IF_ERROR(matcher_.Match(features, history_, history_.Candidates(params_.features), field(),
                                         ToVdPose(pose_), cam_, &matches_, &stats));
       result.feature_match_ms = MsSince(t0);
       result.times[Stage::kFeatures] += result.feature_match_ms;
@@ -962,8 +1024,8 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     // Into the canonical pose through this frame's field (after its solve), before fusion
     // changes the surface the raster showed.
     t0 = Clock::now();
-    VD_RETURN_IF_ERROR(matcher_.Lift(&features, live_, mesh_, volume_, ToVdPose(pose_), ToVdPose(pose_.inverse()),
-                                     !nonrigid));
+    VD_RETURN_IF_ERROR(
+        matcher_.Lift(&features, live_, mesh_, field(), ToVdPose(pose_), ToVdPose(pose_.inverse()), !nonrigid));
     for (const vd_float4& g : features.canonical) result.features_lifted += g.w > 0.f;
     const int64_t index = features.frame_index;
     history_.Add(std::move(features), params_.features.keyframe_interval, matches_);
@@ -997,8 +1059,13 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       fp.k_min_new = std::max(params_.k_min, params_.k_min_new);
       fp.carve_rate = params_.carve_rate;
       fp.carve_radius = params_.carve_radius;
-      VD_RETURN_IF_ERROR(
-          ops_.IntegrateActive(volume_, active_, fp, cam_, ToVdPose(pose_.inverse()), maps_.depth_raw_m, maps_.rgba));
+      if (bricks_) {
+        VD_RETURN_IF_ERROR(ops_.IntegrateActive(*pool_, active_, fp, volume_.vol, cam_, ToVdPose(pose_.inverse()),
+                                                maps_.depth_raw_m, maps_.rgba));
+      } else {
+        VD_RETURN_IF_ERROR(
+            ops_.IntegrateActive(volume_, active_, fp, cam_, ToVdPose(pose_.inverse()), maps_.depth_raw_m, maps_.rgba));
+      }
     } else if (bricks_) {
       VD_RETURN_IF_ERROR(IntegrateBricks(&result));
     } else {
@@ -1044,24 +1111,74 @@ Status Engine::CreateBricks() {
   volume_.vol = vol;
   pool_full_reported_ = false;
   bricks_evicted_ = 0;
-  if (bricks_ && pool_) {
+  bricks_in_use_ = 0;
+  bricks_failed_seen_ = 0;
+  const bool with_field = !params_.rigid_only;
+  if (bricks_ && pool_ && pool_->with_field == with_field) {
     // A new model in the same table and pool: every brick back at rest.
     VD_RETURN_IF_ERROR(bricks_->Clear(*ctx_));
     return pool_->Reset(*ctx_);
   }
-  // Per brick: 512 voxels of 12 bytes, its 27 neighbour slots, its key, stamp and list entry, and
-  // up to four table entries of 8 bytes (the table is a power of two at least twice the pool).
-  constexpr double kBrickBytes = VD_BRICK_VOXELS * 12.0 + VD_BRICK_NEIGHBOURS * 4.0 + 3 * 4.0 + 4 * 8.0;
-  const double slots = std::floor(params_.max_grid_mb * 1e6 / kBrickBytes);
+  // Per brick: 512 voxels of 12 bytes (44 with the deformation field: t_i and R_i), its 27
+  // neighbour slots, its key, stamp and list entry, and up to four table entries of 8 bytes (the
+  // table is a power of two at least twice the pool).
+  const double brick_bytes =
+      VD_BRICK_VOXELS * (with_field ? 44.0 : 12.0) + VD_BRICK_NEIGHBOURS * 4.0 + 3 * 4.0 + 4 * 8.0;
+  const double slots = std::floor(params_.max_grid_mb * 1e6 / brick_bytes);
   if (slots < 1.0) return InvalidArgument("--max-grid-mb holds no brick");
   VD_ASSIGN_OR_RETURN(ocl::BrickTable table, ocl::BrickTable::Create(*ctx_, uint32_t(std::min(slots, double(1 << 28)))));
   // The pool's voxels grow with the bricks taken (IntegrateBricks); the table holds them all.
-  VD_ASSIGN_OR_RETURN(ocl::BrickPool pool, ocl::BrickPool::Create(*ctx_, std::min(table.pool(), kInitialBricks)));
+  VD_ASSIGN_OR_RETURN(ocl::BrickPool pool,
+                      ocl::BrickPool::Create(*ctx_, std::min(table.pool(), kInitialBricks), with_field));
   VD_LOG_INFO << "sparse volume: room for " << table.pool() << " bricks of " << VD_BRICK << "^3 voxels at "
               << vol.voxel_size * 1000 << " mm (" << params_.max_grid_mb << " MB)";
+  bricks_.reset();
+  pool_.reset();
   bricks_.emplace(std::move(table));
   pool_.emplace(std::move(pool));
   return Status::Ok();
+}
+
+Status Engine::RefreshBricks(uint32_t used_before, FrameResult* result) {
+  VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, bricks_->Counts(*ctx_));
+  if (counts.used > pool_->slots)
+    VD_RETURN_IF_ERROR(pool_->Grow(*ctx_, std::min(bricks_->pool(), counts.used + counts.used / 2)));
+  if (counts.used > used_before)
+    VD_RETURN_IF_ERROR(
+        pool_->RestField(*ctx_, *bricks_, used_before, counts.used - used_before, volume_.vol.voxel_size));
+  bricks_in_use_ = counts.used;
+  result->bricks_used = counts.used;
+  result->bricks_pool = bricks_->pool();
+  // Inserts that found no room since the last count: the pool is full (reported, never evicted
+  // under a deforming model: every brick it holds is part of the surface or its support).
+  result->bricks_failed = int64_t(counts.failed) - int64_t(bricks_failed_seen_);
+  bricks_failed_seen_ = counts.failed;
+  if (result->bricks_failed > 0 && !pool_full_reported_)
+    VD_LOG_WARNING << "the brick pool is full (" << counts.used << " bricks, --max-grid-mb " << params_.max_grid_mb
+                   << "): the surface's support could not grow by " << result->bricks_failed
+                   << " bricks (said once; the status says it every frame)";
+  pool_full_reported_ = pool_full_reported_ || result->bricks_failed > 0;
+  // The surface's cells and M again, over the new bricks too (marching cubes rebuilds the
+  // neighbour table; the new bricks are empty, so the mesh is the same).
+  VD_RETURN_IF_ERROR(ops_.MarchingCubes(*bricks_, *pool_, &mesh_));
+  return ops_.BuildActiveSet(*bricks_, &active_);
+}
+
+Status Engine::PrepareBricks(FrameResult* result) {
+  result->bricks_used = bricks_in_use_;
+  result->bricks_pool = bricks_->pool();
+  VD_RETURN_IF_ERROR(ops_.BuildActiveSet(*bricks_, &active_));
+  // The one-ring of the surface where its brick is missing, then the corners of every coarse
+  // level's cells (the coarsest's bricks hold the finer ones'): each found once, so after the first
+  // frames of a region both add nothing and cost a count.
+  VD_ASSIGN_OR_RETURN(const uint32_t ring, ops_.AllocateActiveRing(*bricks_));
+  if (ring > 0) VD_RETURN_IF_ERROR(RefreshBricks(bricks_in_use_, result));
+  const int coarsest = 1 << (params_.solver.levels - 1);
+  if (coarsest > 1) {
+    VD_ASSIGN_OR_RETURN(const uint32_t corners, bricks_->AllocateLevelCorners(*ctx_, active_, coarsest));
+    if (corners > 0) VD_RETURN_IF_ERROR(RefreshBricks(bricks_in_use_, result));
+  }
+  return ops_.Extrapolate(*bricks_, *pool_, active_, volume_.vol.voxel_size);
 }
 
 Status Engine::IntegrateBricks(FrameResult* result) {
@@ -1073,7 +1190,9 @@ Status Engine::IntegrateBricks(FrameResult* result) {
     return bricks_->Counts(*ctx_);
   };
   VD_ASSIGN_OR_RETURN(ocl::BrickCounts counts, allocate());
-  if (counts.unfused > 0) {
+  // A deforming model keeps every brick (its field is the surface's support): a full pool is
+  // reported, not evicted.
+  if (counts.unfused > 0 && !pool_->with_field) {
     // The pool is full: the bricks seen longest ago make room (a quarter of the pool at once, so this
     // stays rare), then the frame's band is allocated again.
     VD_ASSIGN_OR_RETURN(const uint32_t dropped,
@@ -1089,6 +1208,11 @@ Status Engine::IntegrateBricks(FrameResult* result) {
   // The voxels follow the bricks handed out, half as many again ahead so growth stays rare.
   if (counts.used > pool_->slots)
     VD_RETURN_IF_ERROR(pool_->Grow(*ctx_, std::min(bricks_->pool(), counts.used + counts.used / 2)));
+  // New bricks' field starts at rest (a no-op without one).
+  if (counts.used > bricks_in_use_)
+    VD_RETURN_IF_ERROR(pool_->RestField(*ctx_, *bricks_, bricks_in_use_, counts.used - bricks_in_use_, vol.voxel_size));
+  bricks_in_use_ = counts.used;
+  bricks_failed_seen_ = counts.failed;
   VD_RETURN_IF_ERROR(ocl::IntegrateBricks(*ctx_, *bricks_, *pool_, vol, cam_, ToVdPose(pose_.inverse()),
                                           maps_.depth_raw_m, maps_.rgba));
   result->bricks_used = counts.used;

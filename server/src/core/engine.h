@@ -257,6 +257,9 @@ class Engine {
   // *rms_residual (both 0 with fewer than 4 points: the identity). Exposed for tests.
   static Eigen::Matrix4d FieldRigidMotion(const std::vector<vd_float4>& deformed, const std::vector<int32_t>& list,
                                           const VdVolume& vol, double* rms_motion, double* rms_residual);
+  // The same from each point's rest position (w > 0 where it counts; the bricks' from their keys).
+  static Eigen::Matrix4d FieldRigidMotion(const std::vector<vd_float4>& deformed, const std::vector<vd_float4>& rest,
+                                          double* rms_motion, double* rms_residual);
 
  private:
   Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx);
@@ -318,6 +321,22 @@ class Engine {
   // Creates the table and pool within max_grid_mb.
   Status CreateBricks();
   Status IntegrateBricks(FrameResult* result);
+  // The deformation field: on the bricks (a pool with a field) or the dense grid.
+  bool has_field() const { return bricks_ ? pool_->with_field : volume_.has_deformation(); }
+  DeviceField field() const {
+    return bricks_ ? DeviceField::Bricks(*bricks_, *pool_, volume_.vol.voxel_size) : DeviceField::Dense(volume_);
+  }
+  // After bricks were taken (a ring, coarse corners): the pool's voxels follow, the new bricks'
+  // field starts at rest, and the surface's cells and the active set are found again over them.
+  // `used_before`: the slots in use before; fills the frame's pool counts.
+  Status RefreshBricks(uint32_t used_before, FrameResult* result);
+  // The non-rigid solve's active set on the bricks: M, its one-ring and the coarse levels' corners
+  // allocated, the field of new members extrapolated.
+  Status PrepareBricks(FrameResult* result);
+  // Slots in use at the last count (the lattice's extent on the bricks).
+  uint32_t bricks_in_use_ = 0;
+  // The table's failed inserts at the last count (each frame reports its own).
+  uint32_t bricks_failed_seen_ = 0;
   DeviceMesh mesh_;
   DeviceRaster model_;
   // The tracked mesh (TrackMesh): on, given in canonical coordinates (empty: the first frame's),

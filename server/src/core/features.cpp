@@ -416,14 +416,14 @@ size_t FeatureHistory::num_features() const {
   return s;
 }
 
-Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& history, const std::vector<int>& candidates,
-                             const DeviceVolume& volume, const VdPose& cam_to_world, VdCamera cam,
-                             std::vector<SparseMatch>* out, MatchStats* stats) {
+Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& history,
+                             const std::vector<int>& candidates, const DeviceField& field, const VdPose& cam_to_world,
+                             VdCamera cam, std::vector<SparseMatch>* out, MatchStats* stats) {
   const FeatureParams& params = params_;
   *stats = MatchStats();
   const int n_cur = int(cur.size_keypoints());
   if (n_cur == 0 || candidates.empty()) return Status::Ok();
-  if (!volume.has_deformation()) return FailedPrecondition("feature matching needs the deformation field");
+  if (!field.valid()) return FailedPrecondition("feature matching needs the deformation field");
   cand_desc_host_.clear();
   cand_canonical_host_.clear();
   frames_host_.clear();
@@ -453,8 +453,7 @@ Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& his
   VD_RETURN_IF_ERROR(ctx_->Upload(cand_desc_, cand_desc_t_host_.data(), cand_desc_t_host_.size()));
   VD_RETURN_IF_ERROR(ctx_->Upload(cand_canonical_, cand_canonical_host_.data(), size_t(n_cand)));
   VD_RETURN_IF_ERROR(ctx_->Upload(frames_, frames_host_.data(), frames_host_.size()));
-  VD_RETURN_IF_ERROR(
-      ocl::PredictFeatures(*ctx_, size_t(n_cand), cand_canonical_, volume.def_pos, volume.vol, cand_predicted_));
+  VD_RETURN_IF_ERROR(ocl::PredictFeatures(*ctx_, size_t(n_cand), cand_canonical_, field, cand_predicted_));
   VD_RETURN_IF_ERROR(
       ocl::MatchBest(*ctx_, cur_desc_, n_cur, cand_desc_, n_cand, frames_, num_frames, dist_, rows_, cols_));
   rows_host_.resize(size_t(n_cur) * num_frames);
@@ -520,13 +519,13 @@ Status FeatureMatcher::Match(const FrameFeatures& cur, const FeatureHistory& his
 }
 
 Status FeatureMatcher::Lift(FrameFeatures* f, const DeviceRaster& raster, const DeviceMesh& mesh,
-                            const DeviceVolume& volume, const VdPose& cam_to_world, const VdPose& world_to_cam,
+                            const DeviceField& field, const VdPose& cam_to_world, const VdPose& world_to_cam,
                             bool no_model) {
   const FeatureParams& params = params_;
   const size_t n = f->size_keypoints();
   f->canonical.assign(n, VD_F4(0.f, 0.f, 0.f, 0.f));
   if (n == 0) return Status::Ok();
-  if (!volume.has_deformation()) return FailedPrecondition("lifting features needs the deformation field");
+  if (!field.valid()) return FailedPrecondition("lifting features needs the deformation field");
   std::vector<vd_float4> points(n);
   std::vector<int32_t> pixels(n);
   const VdCamera& cam = raster.cam;
@@ -548,7 +547,7 @@ Status FeatureMatcher::Lift(FrameFeatures* f, const DeviceRaster& raster, const 
   VD_RETURN_IF_ERROR(ctx_->Upload(lift_points_, points.data(), n));
   VD_RETURN_IF_ERROR(ctx_->Upload(lift_pixels_, pixels.data(), n));
   VD_RETURN_IF_ERROR(ocl::LiftFeatures(*ctx_, n, lift_points_, lift_pixels_, raster.ids, raster.bary, raster.vertex,
-                                       mesh.positions_grid, mesh.triangles, volume.def_pos, volume.vol, lp, lift_out_));
+                                       mesh.positions_grid, mesh.triangles, field, lp, lift_out_));
   return ctx_->Download(lift_out_, f->canonical.data(), n);
 }
 

@@ -204,13 +204,13 @@ class FeatureMatcher {
 
   // Matches `cur` (camera points of this frame, `cam_to_world` its pose) against the history
   // frames `candidates`; earlier features are moved by the current field for the screen and 3D
-  // pruning. Appends the survivors to `out`.
+  // pruning (`field`: the dense grid's or the bricks'). Appends the survivors to `out`.
   Status Match(const FrameFeatures& cur, const FeatureHistory& history, const std::vector<int>& candidates,
-               const DeviceVolume& volume, const VdPose& cam_to_world, VdCamera cam, std::vector<SparseMatch>* out,
+               const DeviceField& field, const VdPose& cam_to_world, VdCamera cam, std::vector<SparseMatch>* out,
                MatchStats* stats);
   // Lifts `f`'s keypoints into the canonical pose (fills f->canonical). `raster` is the live mesh
   // rendered at this frame's pose; with `no_model` the grid has no surface yet.
-  Status Lift(FrameFeatures* f, const DeviceRaster& raster, const DeviceMesh& mesh, const DeviceVolume& volume,
+  Status Lift(FrameFeatures* f, const DeviceRaster& raster, const DeviceMesh& mesh, const DeviceField& field,
               const VdPose& cam_to_world, const VdPose& world_to_cam, bool no_model);
 
  private:

@@ -21,15 +21,18 @@ void MatchColumns(const float* dist, int n_cur, int n_cand, VdMatchBest* out) {
   for (int b = 0; b < n_cand; ++b) out[b] = vd_match_column(b, n_cur, dist, n_cand);
 }
 
-void FeaturePredict(const vd_float4* canonical, int n, const vd_float4* def_pos, VdVolume vol, vd_float4* out) {
-  for (int i = 0; i < n; ++i) out[i] = vd_feature_predict(canonical[i], def_pos, vol);
+void FeaturePredict(const vd_float4* canonical, int n, const vd_float4* def_pos, VdVolume vol, vd_float4* out,
+                    const uint32_t* keys, const int32_t* slots, uint32_t capacity, const int32_t* nbr) {
+  for (int i = 0; i < n; ++i) out[i] = vd_feature_predict(canonical[i], def_pos, vol, keys, slots, capacity, nbr);
 }
 
 void FeatureLift(const vd_float4* points, const int32_t* pixels, int n, const uint32_t* ids, const vd_float4* bary,
                  const vd_float4* raster_vertex, const vd_float4* canon, const int32_t* tris, const vd_float4* def_pos,
-                 VdVolume vol, VdLiftParams params, vd_float4* out) {
+                 VdVolume vol, VdLiftParams params, vd_float4* out, const uint32_t* keys, const int32_t* slots,
+                 uint32_t capacity, const int32_t* nbr) {
   for (int i = 0; i < n; ++i)
-    out[i] = vd_feature_lift(points[i], pixels[i], ids, bary, raster_vertex, canon, tris, def_pos, vol, params);
+    out[i] = vd_feature_lift(points[i], pixels[i], ids, bary, raster_vertex, canon, tris, def_pos, vol, keys, slots,
+                             capacity, nbr, params);
 }
 
 }  // namespace vd::cpu

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include "ocl/brick_hash_ocl.h"
 #include "ocl/device_ops.h"
 
 namespace vd {
@@ -27,6 +28,11 @@ Status DeviceOps::DeformVertices(const DeviceVolume& v, DeviceMesh* mesh) {
 Status DeviceOps::TransformField(DeviceVolume& v, const VdPose& a, vd_float4 q_a) {
   if (!v.has_deformation()) return FailedPrecondition("TransformField needs a deformation field");
   return ocl::kFieldRigid(*ctx_, v.num_voxels(), v.def_pos, v.def_rot, a, q_a);
+}
+
+Status DeviceOps::TransformField(ocl::BrickPool& pool, const VdPose& a, vd_float4 q_a) {
+  if (!pool.with_field) return FailedPrecondition("TransformField needs a brick pool with a deformation field");
+  return ocl::kFieldRigid(*ctx_, size_t(pool.slots) * VD_BRICK_VOXELS, pool.def_pos, pool.def_rot, a, q_a);
 }
 
 Status DeviceOps::Extrapolate(DeviceVolume& v, const DeviceActiveSet& active) {

@@ -9,7 +9,30 @@ namespace {
 // What a dense lattice passes for the brick buffers.
 const ocl::Buffer<int32_t> kNoNeighbours;
 const ocl::Buffer<uint32_t> kNoKeys;
+const ocl::Buffer<int32_t> kNoSlots;
 }  // namespace
+
+DeviceField DeviceField::Dense(const DeviceVolume& v) {
+  DeviceField f;
+  f.def_pos = &v.def_pos;
+  f.vol = v.vol;
+  f.keys = &kNoKeys;
+  f.slots = &kNoSlots;
+  f.nbr = &kNoNeighbours;
+  return f;
+}
+
+DeviceField DeviceField::Bricks(const ocl::BrickTable& table, const ocl::BrickPool& pool, float voxel_size) {
+  DeviceField f;
+  f.def_pos = &pool.def_pos;
+  f.vol.voxel_size = voxel_size;
+  f.vol.origin = VD_F4(0.f, 0.f, 0.f, 1.f);
+  f.keys = &table.keys();
+  f.slots = &table.slots();
+  f.capacity = table.capacity();
+  f.nbr = &table.neighbours();
+  return f;
+}
 
 DeviceLattice DeviceLattice::Dense(const VdVolume& vol) {
   DeviceLattice l;

@@ -99,6 +99,23 @@ struct DeviceLattice {
   size_t Entries(uint32_t slots) const;
 };
 
+// The deformation field S as the feature kernels read it (VD_FIELD_ARGS, shared/sparse_field.h):
+// a dense grid's, or the brick pool's through its table's hash and neighbour table (after
+// BuildNeighbours). The buffers are not owned; a dense grid passes empty brick buffers.
+struct DeviceField {
+  const ocl::Buffer<vd_float4>* def_pos = nullptr;
+  // Dense: the grid. Bricks: the voxel size (points in global grid coordinates, origin 0).
+  VdVolume vol{};
+  const ocl::Buffer<uint32_t>* keys = nullptr;
+  const ocl::Buffer<int32_t>* slots = nullptr;
+  uint32_t capacity = 0;
+  const ocl::Buffer<int32_t>* nbr = nullptr;
+
+  static DeviceField Dense(const DeviceVolume& v);
+  static DeviceField Bricks(const ocl::BrickTable& table, const ocl::BrickPool& pool, float voxel_size);
+  bool valid() const { return def_pos != nullptr && def_pos->size() > 0; }
+};
+
 class DeviceOps {
  public:
   explicit DeviceOps(ocl::Context* ctx) : ctx_(ctx) {}
@@ -150,6 +167,8 @@ class DeviceOps {
                          ocl::Buffer<VdCorrespondence>& out);
   // Applies the rigid motion a (rotation q_a) to every optimised grid point's position and rotation.
   Status TransformField(DeviceVolume& v, const VdPose& a, vd_float4 q_a);
+  // The same on a brick pool's field (every slot's voxels).
+  Status TransformField(ocl::BrickPool& pool, const VdPose& a, vd_float4 q_a);
   // Initialises members of M never optimised from their optimised neighbours as rigid pieces.
   Status Extrapolate(DeviceVolume& v, const DeviceActiveSet& active);
   // The same on a sparse volume's field (M over the pool: BuildActiveSet(table, ...), which also

@@ -3,9 +3,10 @@
 
 namespace vd::ocl {
 
-Status PredictFeatures(Context& ctx, size_t n, const Buffer<vd_float4>& canonical, const Buffer<vd_float4>& def_pos,
-                       VdVolume vol, Buffer<vd_float4>& out) {
-  return kFeaturePredict(ctx, n, canonical, def_pos, vol, out);
+Status PredictFeatures(Context& ctx, size_t n, const Buffer<vd_float4>& canonical, const DeviceField& field,
+                       Buffer<vd_float4>& out) {
+  return kFeaturePredict(ctx, n, canonical, *field.def_pos, field.vol, *field.keys, *field.slots, field.capacity,
+                         *field.nbr, out);
 }
 
 Status MatchBest(Context& ctx, const Buffer<uint8_t>& cur, int n_cur, const Buffer<uint8_t>& cand, int n_cand,
@@ -18,9 +19,10 @@ Status MatchBest(Context& ctx, const Buffer<uint8_t>& cur, int n_cur, const Buff
 
 Status LiftFeatures(Context& ctx, size_t n, const Buffer<vd_float4>& points, const Buffer<int32_t>& pixels,
                     const Buffer<uint32_t>& ids, const Buffer<vd_float4>& bary, const Buffer<vd_float4>& raster_vertex,
-                    const Buffer<vd_float4>& canon, const Buffer<int32_t>& tris, const Buffer<vd_float4>& def_pos,
-                    VdVolume vol, VdLiftParams prm, Buffer<vd_float4>& out) {
-  return kFeatureLift(ctx, n, points, pixels, ids, bary, raster_vertex, canon, tris, def_pos, vol, prm, out);
+                    const Buffer<vd_float4>& canon, const Buffer<int32_t>& tris, const DeviceField& field,
+                    VdLiftParams prm, Buffer<vd_float4>& out) {
+  return kFeatureLift(ctx, n, points, pixels, ids, bary, raster_vertex, canon, tris, *field.def_pos, field.vol,
+                      *field.keys, *field.slots, field.capacity, *field.nbr, prm, out);
 }
 
 }  // namespace vd::ocl
