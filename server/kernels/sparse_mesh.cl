@@ -88,31 +88,32 @@ __kernel void vd_sparse_mc_triangles(__global const ushort* codes, __global cons
 }
 
 /* The active set over the pool (shared/sparse_mesh.h), one work item per row of 8 points of a slot
- * as above, then one per member. Slots without a brick write zeros. */
+ * as above, then one per member: surface and member start zeroed and are marked from the few cells
+ * with triangles and the few surface points (vd_sparse_mark_*), then each row's members counted.
+ * Slots without a brick mark nothing. */
 __kernel void vd_sparse_active_surface(__global const ushort* codes, __global const uchar* tri_counts,
                                        __global const int* nbr, __global uchar* surface, int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
-  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
-  int present = nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0;
-  for (int x = 0; x < VD_BRICK; ++x)
-    surface[base + x] = present ? vd_sparse_surface_point(codes, tri_counts, nbr, slot, x, y, z) : 0;
+  if (nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] < 0) return;
+  for (int x = 0; x < VD_BRICK; ++x) vd_sparse_mark_cell_corners(codes, tri_counts, nbr, slot, x, y, z, surface);
 }
 
 __kernel void vd_sparse_active_dilate(__global const uchar* surface, __global const int* nbr, __global uchar* member,
-                                      __global uint* row_count, int vd_items) {
+                                      int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
-  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
-  int present = nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0;
+  if (nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] < 0) return;
+  for (int x = 0; x < VD_BRICK; ++x) vd_sparse_mark_dilated(surface, nbr, slot, x, y, z, member);
+}
+
+__kernel void vd_sparse_active_rows(__global const uchar* member, __global uint* row_count, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
   uint n = 0u;
-  for (int x = 0; x < VD_BRICK; ++x) {
-    uchar m = present ? vd_sparse_dilate_point(surface, nbr, slot, x, y, z) : 0;
-    member[base + x] = m;
-    n += m;
-  }
+  for (int x = 0; x < VD_BRICK; ++x) n += member[i * VD_BRICK + x];
   row_count[i] = n;
 }
 

@@ -162,6 +162,32 @@ VD_INLINE vd_uchar vd_sparse_dilate_point(VD_GLOBAL const vd_uchar* surface, VD_
   return 0;
 }
 
+/* The same two sets written from the other side, for passes that visit every point but find the
+ * surface at few: a cell with triangles marks its 8 corners in `surface` (whose bricks exist), and
+ * a surface point marks itself and its 6-neighbours in `member` (both start zeroed). Equal to the
+ * sets above (the sparse mesh parity test holds the kernels to the CPU reference's gather). */
+VD_INLINE void vd_sparse_mark_cell_corners(VD_GLOBAL const vd_ushort* codes, VD_GLOBAL const vd_uchar* tri_counts,
+                                           VD_GLOBAL const int* nbr, int slot, int x, int y, int z,
+                                           VD_GLOBAL vd_uchar* surface) {
+  vd_uint code = codes[slot * VD_BRICK_VOXELS + x + VD_BRICK * y + VD_BRICK_ROWS * z];
+  if (!((code & VD_MC_VALID) && tri_counts[code & 255u] > 0)) return;
+  for (int k = 0; k < 8; ++k) {
+    int c = vd_brick_voxel_at(nbr, slot, x + (k & 1), y + ((k >> 1) & 1), z + ((k >> 2) & 1));
+    if (c >= 0) surface[c] = 1;
+  }
+}
+
+VD_INLINE void vd_sparse_mark_dilated(VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const int* nbr, int slot, int x,
+                                      int y, int z, VD_GLOBAL vd_uchar* member) {
+  int v = slot * VD_BRICK_VOXELS + x + VD_BRICK * y + VD_BRICK_ROWS * z;
+  if (!surface[v]) return;
+  member[v] = 1;
+  for (int d = 0; d < 6; ++d) {
+    int i = vd_sparse_face_neighbour(nbr, slot, x, y, z, d);
+    if (i >= 0) member[i] = 1;
+  }
+}
+
 /* Compact indices of the 6-neighbours of local point (x, y, z) of `slot` (-1 outside M or the
  * allocated bricks), in the order -x, +x, -y, +y, -z, +z. compact: pool voxel -> compact index. */
 VD_INLINE void vd_sparse_neighbours_of(VD_GLOBAL const int* compact, VD_GLOBAL const int* nbr, int slot, int x, int y,

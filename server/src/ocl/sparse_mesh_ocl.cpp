@@ -46,8 +46,11 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_count_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_offset_, rows + 1));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
+  VD_RETURN_IF_ERROR(ctx_->Fill(active_surface_, uint8_t(0), n));
+  VD_RETURN_IF_ERROR(ctx_->Fill(active_member_, uint8_t(0), n));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, nbr, active_surface_));
-  VD_RETURN_IF_ERROR(ocl::kSparseActiveDilate(*ctx_, rows, active_surface_, nbr, active_member_, active_row_count_));
+  VD_RETURN_IF_ERROR(ocl::kSparseActiveDilate(*ctx_, rows, active_surface_, nbr, active_member_));
+  VD_RETURN_IF_ERROR(ocl::kSparseActiveRows(*ctx_, rows, active_member_, active_row_count_));
   VD_RETURN_IF_ERROR(SizeActiveSet(rows, out));
   VD_RETURN_IF_ERROR(
       ocl::kSparseActiveCompact(*ctx_, rows, active_member_, active_row_offset_, out->list, out->compact));

@@ -30,9 +30,11 @@ inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint32_
 inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint8_t>& tri_counts,
                              const Buffer<int32_t>& nbr, Buffer<uint8_t>& surface)>
     kSparseActiveSurface{"vd_sparse_active_surface"};
-inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<int32_t>& nbr, Buffer<uint8_t>& member,
-                             Buffer<uint32_t>& row_count)>
+inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<int32_t>& nbr, Buffer<uint8_t>& member)>
     kSparseActiveDilate{"vd_sparse_active_dilate"};
+// One item per row of 8 points: its members.
+inline constexpr Kernel<void(const Buffer<uint8_t>& member, Buffer<uint32_t>& row_count)> kSparseActiveRows{
+    "vd_sparse_active_rows"};
 inline constexpr Kernel<void(const Buffer<uint8_t>& member, const Buffer<uint32_t>& row_offset, Buffer<int32_t>& list,
                              Buffer<int32_t>& compact)>
     kSparseActiveCompact{"vd_sparse_active_compact"};
