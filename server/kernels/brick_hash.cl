@@ -203,6 +203,20 @@ __kernel void vd_sparse_extrapolate(__global const int* list, __global const int
   rot_out[k] = r;
 }
 
+/* Growth: one work item per voxel of the listed slots, each slot with its planned motion. */
+__kernel void vd_sparse_grow(__global const int* grow_slots, __global const VdPose* motion,
+                             __global const uint* slot_keys, __global float* tsdf, __global float* weight,
+                             __global uint* color, __global float4* def_pos, VdVolume vol, VdCamera cam,
+                             VdPose world_to_cam, __global const float* depth, __global const uint* rgba,
+                             int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  int b = i / VD_BRICK_VOXELS, slot = grow_slots[b];
+  if (slot < 0) return;
+  vd_grow_point(slot * VD_BRICK_VOXELS + i % VD_BRICK_VOXELS, motion[b], slot_keys, tsdf, weight, color, def_pos, vol,
+                cam, world_to_cam, depth, rgba);
+}
+
 __kernel void vd_sparse_deform_vertices(__global const float4* grid_pos, __global const uint* keys,
                                         __global const int* slots, uint capacity, __global const int* nbr,
                                         __global const float4* def_pos, float voxel_size, __global float4* out,

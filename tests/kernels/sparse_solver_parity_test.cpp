@@ -420,5 +420,73 @@ TEST_F(SparseSolverParityTest, FeaturesOnBricksMatchTheCpu) {
   EXPECT_LT(worst, 0.01f);
 }
 
+// Growth (vd_sparse_grow: depth the live model does not explain): the never-fused voxels of the
+// listed bricks within the depth's band fused once, ungated, through the field (their own where
+// optimised, else the rest position moved by the brick's motion), against the CPU; fused voxels
+// untouched.
+TEST_F(SparseSolverParityTest, GrowthFusesTheUnfusedVoxelsOfItsBricksLikeTheCpu) {
+  ocl::Context* ctx = ctx_;
+  const uint32_t used = f_.counts.used;
+  const size_t n = size_t(used) * VD_BRICK_VOXELS;
+  const cpu::BrickTable ref = f_.Reference(ctx);
+  // Every 7th slot, one not a slot (-1), each with its own rigid motion: up to 1 cm and 3 degrees.
+  std::vector<int32_t> slots;
+  std::vector<VdPose> disp;
+  for (uint32_t s = 0; s < used; s += 7) {
+    slots.push_back(int32_t(s));
+    const float a = 0.05f * std::sin(0.7f * float(s)), c = std::cos(a), sn = std::sin(a);
+    VdPose m{};
+    m.r0 = VD_F4(c, -sn, 0.f, 0.01f * std::sin(0.3f * float(s)));
+    m.r1 = VD_F4(sn, c, 0.f, 0.005f * std::cos(0.2f * float(s)));
+    m.r2 = VD_F4(0.f, 0.f, 1.f, -0.004f);
+    disp.push_back(m);
+  }
+  slots.push_back(-1);
+  disp.push_back(test::IdentityPose());
+  // Some voxels optimised already (their own t_i, moved 2 mm, is used).
+  std::vector<vd_float4> field = FromDevice(ctx, f_.pool->def_pos, n);
+  for (size_t v = 0; v < n; v += 5) {
+    field[v].z += 0.002f;
+    field[v].w = 4.f;
+  }
+  ASSERT_TRUE(ctx->Upload(f_.pool->def_pos, field.data(), n).ok());
+  test::FusedBricks::Voxels want = f_.Download(ctx);
+  const std::vector<float> weight_before = want.weight;
+  std::vector<vd_float4> want_field = field;
+  cpu::SparseGrow(ref, slots, disp, want.tsdf.data(), want.weight.data(), want.color.data(), want_field.data(), f_.vol,
+                  f_.cam, f_.world_to_cam, f_.depth.data(), f_.rgba.data());
+  auto d_slots = ToDevice(ctx, slots);
+  auto d_disp = ToDevice(ctx, disp);
+  ASSERT_TRUE(ocl::GrowBricks(*ctx, *f_.table, *f_.pool, slots.size(), d_slots, d_disp, f_.vol, f_.cam, f_.world_to_cam,
+                              f_.dd, f_.dc)
+                  .ok());
+  const test::FusedBricks::Voxels got = f_.Download(ctx);
+  EXPECT_TRUE(test::AllClose(got.tsdf, want.tsdf, 1e-6f, 1e-5f));
+  EXPECT_TRUE(test::AllClose(got.weight, want.weight, 0.f, 0.f));
+  EXPECT_EQ(got.color, want.color);
+  EXPECT_TRUE(
+      test::AllClose(test::Flatten(FromDevice(ctx, f_.pool->def_pos, n)), test::Flatten(want_field), 1e-6f, 1e-6f));
+  size_t grown = 0, refused = 0;
+  for (size_t v = 0; v < n; ++v) {
+    if (weight_before[v] > 0.f) {
+      EXPECT_EQ(want.weight[v], weight_before[v]) << "a fused voxel is left alone";
+      continue;
+    }
+    if (want.weight[v] > 0.f) {
+      ++grown;
+      EXPECT_EQ((v / VD_BRICK_VOXELS) % 7, 0u) << "only the listed bricks grow";
+    } else if ((v / VD_BRICK_VOXELS) % 7 == 0) {
+      ++refused;  // outside the band
+    }
+  }
+  std::printf("growth: %zu voxels fused, %zu of the listed bricks' unfused voxels outside the band\n", grown, refused);
+  EXPECT_GT(grown, 100u);
+  EXPECT_GT(refused, grown) << "free space in front is not fused";
+  EXPECT_FALSE(ocl::GrowBricks(*ctx, *f_.table, *f_.pool, slots.size() + 1, d_slots, d_disp, f_.vol, f_.cam,
+                               f_.world_to_cam, f_.dd, f_.dc)
+                   .ok())
+      << "more bricks than listed";
+}
+
 }  // namespace
 }  // namespace vd

@@ -157,4 +157,40 @@ VD_INLINE int vd_sparse_constraint_cell(VdCorrespondence c, VD_GLOBAL const vd_u
   return idx[0];
 }
 
+/* Growth (core/growth.h): pool voxel v of a brick that depth the live model does not explain falls
+ * in. A voxel never fused (weight 0) whose deformed position lies within the depth's truncation
+ * band is fused once, ungated: at its own t_i where the solver has optimised it, otherwise at its
+ * rest position moved by the brick's planned rigid motion (written back as its t_i, still w = 0:
+ * never optimised, so extrapolation from optimised neighbours refines it). A fused voxel is left to
+ * the solve and the gated fusion. */
+VD_INLINE void vd_grow_point(int v, VdPose motion, VD_GLOBAL const vd_uint* slot_keys, VD_GLOBAL float* tsdf,
+                             VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color, VD_GLOBAL vd_float4* def_pos,
+                             VdVolume vol, VdCamera cam, VdPose world_to_cam, VD_GLOBAL const float* depth,
+                             VD_GLOBAL const vd_uint* rgba) {
+  if (weight[v] > 0.0f) return;
+  vd_float4 t = def_pos[v];
+  int planned = !(t.w > 0.0f);
+  if (planned) t = vd_pose_apply(motion, vd_pool_rest_position(slot_keys, v, vol.voxel_size));
+  /* Only within the truncation band of the depth: free space in front is left to the gated fusion
+   * (fused here, it would give the surface's unobserved edges cells to mesh). */
+  vd_float4 p = t;
+  p.w = 1.0f;
+  vd_float4 pc = vd_pose_apply(world_to_cam, p);
+  if (!(pc.z > 0.0f)) return;
+  int px = (int)floor(vd_project_u(cam, pc) + 0.5f), py = (int)floor(vd_project_v(cam, pc) + 0.5f);
+  if (px < 0 || py < 0 || px >= cam.width || py >= cam.height) return;
+  float d = depth[py * cam.width + px];
+  if (!(d > 0.0f) || fabs(d - pc.z) > vol.truncation) return;
+  if (planned) {
+    t.w = 0.0f;
+    def_pos[v] = t;
+  }
+  VdFusionParams ungated;
+  ungated.k_min = 0.0f;
+  ungated.k_min_new = 0.0f;
+  ungated.carve_rate = 0.0f;
+  ungated.carve_radius = 0;
+  vd_tsdf_integrate_deformed(tsdf, weight, color, v, t, ungated, vol, cam, world_to_cam, depth, rgba);
+}
+
 #endif /* VD_SPARSE_FIELD_H */

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <sstream>
 
+#include "core/growth.h"
 #include "ocl/solver_ocl.h"
 #include "vd/common/flags.h"
 #include "vd/common/log.h"
@@ -771,6 +772,7 @@ Status Engine::ExtractMesh(FrameResult* result) {
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.normals, nrm.data(), nv));
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.colors, col.data(), nv));
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.triangles, canon.triangles.data(), 3 * nt));
+  if (bricks_ && pool_->with_field) host_tris_.assign(canon.triangles.begin(), canon.triangles.end());
   canon.positions.resize(3 * nv);
   canon.normals.resize(3 * nv);
   canon.colors.resize(3 * nv);
@@ -1071,6 +1073,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     } else {
       VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), maps_.depth_raw_m, maps_.rgba));
     }
+    if (nonrigid && bricks_) VD_RETURN_IF_ERROR(GrowBricks(frame, &result));
     VD_RETURN_IF_ERROR(ctx_->Finish());
     result.times[Stage::kIntegrate] = MsSince(t0);
     ++frames_fused_;
@@ -1092,6 +1095,7 @@ std::string BrickPoolNote(const FrameResult& r) {
   if (r.bricks_evicted_total > 0)
     out += "; " + std::to_string(r.bricks_evicted_total) + " bricks seen longest ago dropped to make room" +
            (r.bricks_evicted > 0 ? " (" + std::to_string(r.bricks_evicted) + " this frame)" : "");
+  if (r.bricks_grown > 0) out += "; " + std::to_string(r.bricks_grown) + " bricks grown for new surface";
   if (r.bricks_out_of_range > 0)
     out += "; surface beyond the volume's reach (" + std::to_string(VD_BRICK_COORD_MAX) +
            " bricks from the first camera) not fused: " + std::to_string(r.bricks_out_of_range) + " samples";
@@ -1162,6 +1166,50 @@ Status Engine::RefreshBricks(uint32_t used_before, FrameResult* result) {
   // neighbour table; the new bricks are empty, so the mesh is the same).
   VD_RETURN_IF_ERROR(ops_.MarchingCubes(*bricks_, *pool_, &mesh_));
   return ops_.BuildActiveSet(*bricks_, &active_);
+}
+
+Status Engine::GrowBricks(const RgbdFrame& frame, FrameResult* result) {
+  const size_t pixels = size_t(cam_.width) * cam_.height, nv = mesh_.num_vertices;
+  if (nv == 0 || live_.ids.size() < pixels || host_grid_.size() != nv || host_tris_.size() != 3 * mesh_.num_triangles)
+    return Status::Ok();
+  grow_ids_.resize(pixels);
+  grow_deformed_.resize(nv);
+  VD_RETURN_IF_ERROR(ctx_->Download(live_.ids, grow_ids_.data(), pixels));
+  VD_RETURN_IF_ERROR(ctx_->Download(mesh_.positions, grow_deformed_.data(), nv));
+  const VdVolume& vol = volume_.vol;
+  std::vector<GrowthBrick> plan =
+      PlanGrowth(frame.depth, 1.f / frame.depth_scale, params_.min_depth, params_.max_depth, cam_, ToVdPose(pose_),
+                 grow_ids_.data(), host_tris_.data(), mesh_.num_triangles, grow_deformed_.data(), host_grid_.data(),
+                 vol.voxel_size, vol.truncation, GrowthParams());
+  if (plan.empty()) return Status::Ok();
+  const size_t m = plan.size();
+  std::vector<uint32_t> keys(m);
+  std::vector<VdPose> motion(m);
+  for (size_t i = 0; i < m; ++i) keys[i] = plan[i].key, motion[i] = plan[i].motion;
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&grow_keys_, m));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&grow_slots_, m));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&grow_motion_, m));
+  VD_RETURN_IF_ERROR(ctx_->Upload(grow_keys_, keys.data(), m));
+  VD_RETURN_IF_ERROR(ctx_->Upload(grow_motion_, motion.data(), m));
+  // The missing bricks first (a full pool leaves them out: -1 below), at rest.
+  const uint32_t before = bricks_in_use_;
+  VD_RETURN_IF_ERROR(bricks_->Insert(*ctx_, grow_keys_, m));
+  VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, bricks_->Counts(*ctx_));
+  if (counts.used > before) {
+    if (counts.used > pool_->slots)
+      VD_RETURN_IF_ERROR(pool_->Grow(*ctx_, std::min(bricks_->pool(), counts.used + counts.used / 2)));
+    VD_RETURN_IF_ERROR(pool_->RestField(*ctx_, *bricks_, before, counts.used - before, volume_.vol.voxel_size));
+    bricks_in_use_ = counts.used;
+  }
+  VD_RETURN_IF_ERROR(bricks_->Lookup(*ctx_, grow_keys_, m, grow_slots_));
+  VD_RETURN_IF_ERROR(ocl::GrowBricks(*ctx_, *bricks_, *pool_, m, grow_slots_, grow_motion_, volume_.vol, cam_,
+                                     ToVdPose(pose_.inverse()), maps_.depth_raw_m, maps_.rgba));
+  result->bricks_grown = int64_t(counts.used) - int64_t(before);
+  result->bricks_failed += int64_t(counts.failed) - int64_t(bricks_failed_seen_);
+  bricks_failed_seen_ = counts.failed;
+  result->bricks_used = counts.used;
+  result->bricks_pool = bricks_->pool();
+  return Status::Ok();
 }
 
 Status Engine::PrepareBricks(FrameResult* result) {

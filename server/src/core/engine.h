@@ -177,6 +177,8 @@ struct FrameResult {
   // Samples of this frame's surface beyond the reach of the brick keys (512 bricks from the first
   // camera along each axis: +-16 m at 4 mm), not fused.
   int64_t bricks_out_of_range = 0;
+  // Non-rigid on the bricks: bricks grown this frame for depth the live model did not explain.
+  int64_t bricks_grown = 0;
   // Non-rigid solve of this frame: constraint rows (dense pixels + 3 per sparse match), E_total before and after (0 when rigid).
   int dense_correspondences = 0;
   double energy_initial = 0.0;
@@ -333,6 +335,17 @@ class Engine {
   // The non-rigid solve's active set on the bricks: M, its one-ring and the coarse levels' corners
   // allocated, the field of new members extrapolated.
   Status PrepareBricks(FrameResult* result);
+  // Depth the live model does not explain gets bricks (core/growth.h), their field started at the
+  // nearest rendered surface's motion, and is fused into them once through it.
+  Status GrowBricks(const RgbdFrame& frame, FrameResult* result);
+  // GrowBricks' host copies (the raster's triangle ids, the deformed vertices, the faces) and its
+  // bricks' keys, slots and motions on the device.
+  std::vector<uint32_t> grow_ids_;
+  std::vector<vd_float4> grow_deformed_;
+  std::vector<int32_t> host_tris_;
+  ocl::Buffer<uint32_t> grow_keys_;
+  ocl::Buffer<int32_t> grow_slots_;
+  ocl::Buffer<VdPose> grow_motion_;
   // Slots in use at the last count (the lattice's extent on the bricks).
   uint32_t bricks_in_use_ = 0;
   // The table's failed inserts at the last count (each frame reports its own).

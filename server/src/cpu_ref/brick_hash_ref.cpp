@@ -4,6 +4,7 @@
 #include <numeric>
 
 #include "ocl/mc_table.h"
+#include "shared/sparse_field.h"
 
 namespace vd::cpu {
 
@@ -107,6 +108,16 @@ void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visibl
     for (int r = 0; r < VD_BRICK * VD_BRICK; ++r)
       vd_sparse_integrate_row(slot, r, table.slot_keys.data(), tsdf, weight, color, vol, cam, world_to_cam, depth,
                               rgba);
+}
+
+void SparseGrow(const BrickTable& table, const std::vector<int32_t>& slots, const std::vector<VdPose>& motion,
+                float* tsdf, float* weight, uint32_t* color, vd_float4* def_pos, VdVolume vol, VdCamera cam,
+                VdPose world_to_cam, const float* depth, const uint32_t* rgba) {
+  for (size_t b = 0; b < slots.size(); ++b)
+    if (slots[b] >= 0)
+      for (int v = 0; v < VD_BRICK_VOXELS; ++v)
+        vd_grow_point(slots[b] * VD_BRICK_VOXELS + v, motion[b], table.slot_keys.data(), tsdf, weight, color, def_pos,
+                      vol, cam, world_to_cam, depth, rgba);
 }
 
 void BrickFieldMove(const uint32_t* keep, uint32_t used, vd_float4* def_pos, vd_float4* def_rot) {

@@ -43,6 +43,12 @@ void SparseIntegrate(const BrickTable& table, const std::vector<int32_t>& visibl
                      uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam, const float* depth,
                      const uint32_t* rgba);
 
+// Growth (vd_grow_point) into the voxels of the listed slots (-1 skipped), each slot with its
+// rigid motion.
+void SparseGrow(const BrickTable& table, const std::vector<int32_t>& slots, const std::vector<VdPose>& motion,
+                float* tsdf, float* weight, uint32_t* color, vd_float4* def_pos, VdVolume vol, VdCamera cam,
+                VdPose world_to_cam, const float* depth, const uint32_t* rgba);
+
 // Moves the kept bricks' voxels (512 per slot of tsdf, weight, colour) to their compacted slots, as
 // the device's vd_brick_pool_move does, for the first `used` slots.
 void BrickPoolMove(const uint32_t* keep, uint32_t used, float* tsdf, float* weight, uint32_t* color);

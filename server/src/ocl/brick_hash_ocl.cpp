@@ -273,4 +273,14 @@ Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& 
                                 compact, cell_of, counts);
 }
 
+Status GrowBricks(Context& ctx, const BrickTable& table, BrickPool& pool, size_t count, const Buffer<int32_t>& slots,
+                  const Buffer<VdPose>& motion, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                  const Buffer<float>& depth, const Buffer<uint32_t>& rgba) {
+  if (!pool.with_field) return FailedPrecondition("GrowBricks needs a brick pool with a deformation field");
+  if (slots.size() < count || motion.size() < count) return InvalidArgument("fewer slots than asked to grow");
+  if (count == 0) return Status::Ok();
+  return kSparseGrow(ctx, count * VD_BRICK_VOXELS, slots, motion, table.slot_keys(), pool.tsdf, pool.weight, pool.color,
+                     pool.def_pos, vol, cam, world_to_cam, depth, rgba);
+}
+
 }  // namespace vd::ocl

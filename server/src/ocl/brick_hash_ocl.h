@@ -75,6 +75,12 @@ inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>&
                              const Buffer<vd_float4>& def_rot, float voxel_size, Buffer<vd_float4>& pos_out,
                              Buffer<vd_float4>& rot_out)>
     kSparseExtrapolate{"vd_sparse_extrapolate"};
+// One item per voxel of the listed slots (-1: skipped).
+inline constexpr Kernel<void(const Buffer<int32_t>& grow_slots, const Buffer<VdPose>& motion,
+                             const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf, Buffer<float>& weight,
+                             Buffer<uint32_t>& color, Buffer<vd_float4>& def_pos, VdVolume vol, VdCamera cam,
+                             VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba)>
+    kSparseGrow{"vd_sparse_grow"};
 // One item per vertex.
 inline constexpr Kernel<void(const Buffer<vd_float4>& grid_pos, const Buffer<uint32_t>& keys,
                              const Buffer<int32_t>& slots, uint32_t capacity, const Buffer<int32_t>& nbr,
@@ -224,6 +230,13 @@ struct BrickPool {
 // from the world origin).
 Status IntegrateBricks(Context& ctx, const BrickTable& table, BrickPool& pool, VdVolume vol, VdCamera cam,
                        VdPose world_to_cam, const Buffer<float>& depth, const Buffer<uint32_t>& rgba);
+
+// Growth (core/growth.h): the voxels of `count` slots (slots[i], -1 skipped; motion[i] their
+// planned rigid motion) that were never fused, fused once ungated through the field (shared/
+// sparse_field.h vd_grow_point); vol: voxel size, truncation and weight cap.
+Status GrowBricks(Context& ctx, const BrickTable& table, BrickPool& pool, size_t count, const Buffer<int32_t>& slots,
+                  const Buffer<VdPose>& motion, VdVolume vol, VdCamera cam, VdPose world_to_cam,
+                  const Buffer<float>& depth, const Buffer<uint32_t>& rgba);
 
 // The solver's constraint grouping on a sparse volume (CountConstraints' twin): cell_of[i] the
 // compact index of constraint i's cell's first corner (-1: unusable), counts[cell] += 1. compact:
