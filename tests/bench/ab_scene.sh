@@ -4,9 +4,11 @@
 # total, its non-rigid stage and the sum of the other device stages (preprocess, raster, ICP,
 # marching cubes: unchanged by a solver change, so they show the host's own drift), then the means.
 #   tests/bench/ab_scene.sh BUILD_A BUILD_B [SCENE] [ROUNDS] [FRAMES]
+# AB_FLAGS_A / AB_FLAGS_B: extra vd_scene_bench flags for each side (one build, two settings:
+#   AB_FLAGS_B=--sparse-volume tests/bench/ab_scene.sh build build tube).
 set -euo pipefail
 if [[ $# -lt 2 || $1 == -h || $1 == --help ]]; then
-  sed -n '2,6p' "$0" | sed 's/^# \{0,1\}//'
+  sed -n '2,8p' "$0" | sed 's/^# \{0,1\}//'
   exit 0
 fi
 a=$(cd "$1" && pwd)
@@ -20,9 +22,10 @@ trap 'rm -f "$out" "$runs"' EXIT
 for ((i = 1; i <= rounds; ++i)); do
   for which in A B B A; do
     build=$a
-    [[ $which == B ]] && build=$b
+    flags=${AB_FLAGS_A:-}
+    [[ $which == B ]] && build=$b && flags=${AB_FLAGS_B:-}
     POCL_CACHE_DIR=${POCL_CACHE_DIR:-$build/pocl-cache} "$build/tests/bench/vd_scene_bench" --scene "$scene" \
-      --frames "$frames" >"$out" 2>&1 || { echo "vd_scene_bench failed in $build:" >&2; tail -5 "$out" >&2; exit 1; }
+      --frames "$frames" $flags >"$out" 2>&1 || { echo "vd_scene_bench failed in $build:" >&2; tail -5 "$out" >&2; exit 1; }
     grep '^stages' "$out" | awk -v w="$which" -v s="$scene" '{
       for (i = 1; i <= NF; ++i) {
         if ($i == "nonrigid") nr = $(i + 1); if ($i == "raster") ra = $(i + 1); if ($i == "icp") ic = $(i + 1)
