@@ -70,7 +70,8 @@ void EngineParams::Bind(FlagParser* f) {
   f->Add("max-depth", &max_depth, "Depth beyond this many metres is ignored");
   f->Add("max-grid-mb", &max_grid_mb,
          "Memory the grid may use, MB (12 bytes per point with --rigid-only, 44 with the deformation field); with "
-         "--sparse-volume the most the bricks may use (6.3 KB a brick of 512 points with --rigid-only)");
+         "--sparse-volume the most the bricks may use (6.3 KB a brick of 512 points with --rigid-only, 22.7 KB with "
+         "the field)");
   f->Add("volume-margin", &volume_margin,
          "Space added around the first frame's points when placing the grid, metres (larger for a moving "
          "camera that will see more of the scene)");
@@ -78,8 +79,9 @@ void EngineParams::Bind(FlagParser* f) {
                "Rigid tracking and fusion only: no deformation field (12 instead of 44 bytes per grid point), no "
                "non-rigid solve");
   f->AddSwitch("sparse-volume", &sparse_volume,
-               "Store the volume as 8^3 bricks allocated where the depth reaches: no box fixed at the first frame, "
-               "--max-grid-mb is the brick pool (needs --rigid-only for now)");
+               "Store the volume (and the deformation field) as 8^3 bricks allocated where the surface is: no box "
+               "fixed at the first frame, surface entering the view grows bricks, --max-grid-mb is the brick pool "
+               "(non-rigid: at most 4 --levels)");
   f->Add("k-min", &k_min, "Grid points are fused non-rigidly only after taking part in this many optimisations");
   f->Add("field-rigid-threshold", &field_rigid_threshold,
          "Move the field's rigid part into the camera pose once it displaces the active points by this RMS, metres "
