@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 
 #include "core/engine.h"
+#include "trajectory_error.h"
 #include "ocl/ocl.h"
 #include "vd/capture/source.h"
 
@@ -19,10 +20,8 @@ namespace {
 const std::string kDir = std::string(VD_SHARED_DATA_DIR) + "/7scenes_redkitchen";
 
 Eigen::Matrix4d ReadPose(const std::string& path) {
-  std::ifstream in(path);
-  Eigen::Matrix4d T;
-  for (int r = 0; r < 4; ++r)
-    for (int c = 0; c < 4; ++c) in >> T(r, c);
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  test::ReadPoseFile(path, &T);
   return T;
 }
 
@@ -40,10 +39,7 @@ bool HaveDevice() {
   return devices.ok() && !devices->empty();
 }
 
-// Absolute trajectory error (RMSE of camera positions, metres), two ways: anchored (world = first
-// frame's camera, which both trajectories share by construction, no further alignment) and the
-// standard ATE of Sturm et al. (TUM RGB-D benchmark): after the rigid alignment (Horn / Umeyama,
-// no scale) of the estimated positions onto the ground truth.
+// Absolute trajectory error: test::ComputeTrajectoryError (anchored and aligned).
 StatusOr<AteResult> RunRedKitchen(bool rigid_only, bool sparse_volume = false) {
   VD_ASSIGN_OR_RETURN(auto source, OpenSource("folder:" + kDir, SourceOptions()));
   EngineParams p;
@@ -56,7 +52,7 @@ StatusOr<AteResult> RunRedKitchen(bool rigid_only, bool sparse_volume = false) {
   VD_ASSIGN_OR_RETURN(auto engine, Engine::Create(p, ""));
   const Eigen::Matrix4d gt0_inv = ReadPose(kDir + "/frame-000000.pose.txt").inverse();
   AteResult out;
-  double sum_sq = 0, ms = 0;
+  double ms = 0;
   std::vector<Eigen::Vector3d> est, gt;
   char name[64];
   while (true) {
@@ -69,25 +65,17 @@ StatusOr<AteResult> RunRedKitchen(bool rigid_only, bool sparse_volume = false) {
     const Eigen::Matrix4d truth = gt0_inv * ReadPose(kDir + name);
     est.push_back(r.pose.topRightCorner<3, 1>());
     gt.push_back(truth.topRightCorner<3, 1>());
-    const double e = (truth.topRightCorner<3, 1>() - r.pose.topRightCorner<3, 1>()).norm();
-    sum_sq += e * e;
-    out.worst = std::max(out.worst, e);
     ++out.frames;
     out.canonical = std::move(r.canonical_mesh);
   }
   out.volume = engine->volume();
   const int n = out.frames;
   if (n == 0) return FailedPrecondition("no frames");
-  out.ate_anchored = std::sqrt(sum_sq / n);
+  const test::TrajectoryError ate = test::ComputeTrajectoryError(est, gt);
+  out.ate_anchored = ate.anchored;
+  out.ate_aligned = ate.aligned;
+  out.worst = ate.worst;
   out.ms_per_frame = ms / n;
-  Eigen::Matrix3Xd a(3, n), b(3, n);
-  for (int k = 0; k < n; ++k) {
-    a.col(k) = est[k];
-    b.col(k) = gt[k];
-  }
-  const Eigen::Matrix4d align = Eigen::umeyama(a, b, false);
-  const Eigen::Matrix3Xd aligned = (align.topLeftCorner<3, 3>() * a).colwise() + align.topRightCorner<3, 1>();
-  out.ate_aligned = std::sqrt((aligned - b).colwise().squaredNorm().mean());
   std::printf(
       "7-Scenes redkitchen, %s: %d frames, ATE RMSE %.1f mm aligned (standard), %.1f mm anchored at frame 0 "
       "(worst %.1f mm), tracking lost on %d, %.0f ms per frame\n",

@@ -58,6 +58,11 @@ VdPose ToVdPose(const Eigen::Matrix4d& T) {
   return p;
 }
 
+double DenseGridPointBytes(bool with_field) { return with_field ? 44.0 : 12.0; }
+double SparseBrickBytes(bool with_field) {
+  return VD_BRICK_VOXELS * DenseGridPointBytes(with_field) + VD_BRICK_NEIGHBOURS * 4.0 + 3 * 4.0 + 4 * 8.0;
+}
+
 int64_t ResidentBytes() { return ProcStatusKb("VmRSS:") * 1024; }
 int64_t PeakResidentBytes() { return ProcStatusKb("VmHWM:") * 1024; }
 
@@ -416,7 +421,7 @@ Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
       return restored;
     }
   } else {
-    const double budget = params_.max_grid_mb * 1e6 / (params_.rigid_only ? 12.0 : 44.0);
+    const double budget = params_.max_grid_mb * 1e6 / DenseGridPointBytes(!params_.rigid_only);
     if (double(s.num_voxels()) > budget)
       return FailedPrecondition("the checkpoint's grid (" + std::to_string(s.num_voxels()) +
                                 " points) does not fit max_grid_mb");
@@ -581,7 +586,7 @@ StatusOr<VdVolume> Engine::PlaceVolume(const RgbdFrame& frame, const EngineParam
   float mn[3], ext[3];
   int dims[3];
   // Grid points the memory budget holds.
-  const double budget = p.max_grid_mb * 1e6 / (p.rigid_only ? 12.0 : 44.0);
+  const double budget = p.max_grid_mb * 1e6 / DenseGridPointBytes(!p.rigid_only);
   // The box around the first view with `margin` metres of room, `scale` of each side kept; its
   // grid points.
   auto place = [&](float margin, double scale) {
@@ -1125,12 +1130,7 @@ Status Engine::CreateBricks() {
     VD_RETURN_IF_ERROR(bricks_->Clear(*ctx_));
     return pool_->Reset(*ctx_);
   }
-  // Per brick: 512 voxels of 12 bytes (44 with the deformation field: t_i and R_i), its 27
-  // neighbour slots, its key, stamp and list entry, and up to four table entries of 8 bytes (the
-  // table is a power of two at least twice the pool).
-  const double brick_bytes =
-      VD_BRICK_VOXELS * (with_field ? 44.0 : 12.0) + VD_BRICK_NEIGHBOURS * 4.0 + 3 * 4.0 + 4 * 8.0;
-  const double slots = std::floor(params_.max_grid_mb * 1e6 / brick_bytes);
+  const double slots = std::floor(params_.max_grid_mb * 1e6 / SparseBrickBytes(with_field));
   if (slots < 1.0) return InvalidArgument("--max-grid-mb holds no brick");
   VD_ASSIGN_OR_RETURN(ocl::BrickTable table, ocl::BrickTable::Create(*ctx_, uint32_t(std::min(slots, double(1 << 28)))));
   // The pool's voxels grow with the bricks taken (IntegrateBricks); the table holds them all.

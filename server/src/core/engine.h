@@ -201,6 +201,14 @@ struct FrameResult {
   BundleStats bundle;
 };
 
+// Device bytes of one grid point of the dense volume: TSDF, weight and colour (12), and with the
+// deformation field t_i and R_i (44). --max-grid-mb divides by it.
+double DenseGridPointBytes(bool with_field);
+// Device bytes of one brick of the sparse volume: its 512 voxels (as DenseGridPointBytes), its 27
+// neighbour slots, key, stamp and list entry, and up to four table entries of 8 bytes (the table
+// is a power of two at least twice the pool). --max-grid-mb divides by it with --sparse-volume.
+double SparseBrickBytes(bool with_field);
+
 class Engine {
  public:
   // device_spec as for ocl::Context::Create.
