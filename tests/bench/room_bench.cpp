@@ -114,8 +114,8 @@ int main(int argc, char** argv) {
   }
   const vd::test::TrajectoryError ate = vd::test::ComputeTrajectoryError(est, gt);
   const auto& p = options.engine;
-  std::printf("%s, %.1f mm, %s%s: %lld frames%s, tracking lost on %lld\n", options.input.c_str(),
-              p.voxel_size * 1000, p.rigid_only ? "rigid-only" : "non-rigid", p.sparse_volume ? ", sparse volume" : "",
+  std::printf("%s, %.1f mm, %s%s: %lld frames%s, tracking lost on %lld\n", options.input.c_str(), p.voxel_size * 1000,
+              p.rigid_only ? "rigid-only" : "non-rigid", p.sparse_volume ? ", sparse volume" : "",
               static_cast<long long>(frames), g_stop ? " (interrupted)" : "", static_cast<long long>(lost));
   std::printf("ATE RMSE %.1f mm aligned (standard), %.1f mm anchored at the first frame (worst %.1f mm)\n",
               ate.aligned * 1000, ate.anchored * 1000, ate.worst * 1000);
@@ -123,8 +123,7 @@ int main(int argc, char** argv) {
   // The extent the model covers: the last canonical mesh's box (world metres), as grid points.
   Eigen::Array3d lo = Eigen::Array3d::Constant(std::numeric_limits<double>::max()), hi = -lo;
   for (size_t i = 0; i < canonical.num_vertices(); ++i) {
-    const Eigen::Array3d v(canonical.positions[3 * i], canonical.positions[3 * i + 1],
-                           canonical.positions[3 * i + 2]);
+    const Eigen::Array3d v(canonical.positions[3 * i], canonical.positions[3 * i + 1], canonical.positions[3 * i + 2]);
     lo = lo.min(v);
     hi = hi.max(v);
   }
@@ -133,15 +132,17 @@ int main(int argc, char** argv) {
   if (canonical.num_vertices() > 0) {
     const Eigen::Array3d points = ((hi - lo) / p.voxel_size).floor() + 1;
     const double dense_bytes = points.prod() * vd::DenseGridPointBytes(with_field);
-    std::printf("canonical extent %.2f x %.2f x %.2f m: a dense grid over it needs %.1f MB (%.0f points of %.0f bytes)\n",
-                hi.x() - lo.x(), hi.y() - lo.y(), hi.z() - lo.z(), dense_bytes / 1e6, points.prod(),
-                vd::DenseGridPointBytes(with_field));
+    std::printf(
+        "canonical extent %.2f x %.2f x %.2f m: a dense grid over it needs %.1f MB (%.0f points of %.0f bytes)\n",
+        hi.x() - lo.x(), hi.y() - lo.y(), hi.z() - lo.z(), dense_bytes / 1e6, points.prod(),
+        vd::DenseGridPointBytes(with_field));
     if (p.sparse_volume) {
       const double pool_bytes = bricks_used * vd::SparseBrickBytes(with_field);
-      std::printf("bricks: %lld in use, %.1f MB of pool data (%.1f %% of the dense grid over the extent); %lld not "
-                  "fused for want of room, %lld dropped\n",
-                  static_cast<long long>(bricks_used), pool_bytes / 1e6, 100.0 * pool_bytes / dense_bytes,
-                  static_cast<long long>(bricks_failed), static_cast<long long>(evicted));
+      std::printf(
+          "bricks: %lld in use, %.1f MB of pool data (%.1f %% of the dense grid over the extent); %lld not "
+          "fused for want of room, %lld dropped\n",
+          static_cast<long long>(bricks_used), pool_bytes / 1e6, 100.0 * pool_bytes / dense_bytes,
+          static_cast<long long>(bricks_failed), static_cast<long long>(evicted));
     }
   }
   return 0;

@@ -1,17 +1,16 @@
 // Rigid tracking on the real 7-Scenes "redkitchen" sequence against its ground-truth poses.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <vector>
 
-#include <Eigen/Geometry>
-
 #include "core/engine.h"
-#include "trajectory_error.h"
 #include "ocl/ocl.h"
+#include "trajectory_error.h"
 #include "vd/capture/source.h"
 
 namespace vd {

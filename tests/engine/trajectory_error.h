@@ -3,13 +3,12 @@
 // frame-%06d.pose.txt per frame, a row-major 4x4 camera-to-world matrix). Shared by
 // sevenscenes_ate_test and vd_room_bench, so the test's bound and the benchmark's figure are the
 // same measure.
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <string>
 #include <vector>
-
-#include <Eigen/Geometry>
 
 namespace vd::test {
 
