@@ -1,18 +1,28 @@
 #include "shared/sparse_mesh.h"
 
 /* Marching cubes over the brick pool (shared/sparse_mesh.h): one work item per row of 8 cells of
- * a slot (slot * 64 + y + 8 z), the dense passes' order within a row; a slot without a brick
- * writes nothing but zero totals. */
+ * a slot (slot * 64 + y + 8 z), the dense passes' order within a row; a slot without a brick, or
+ * with one that holds no weight, writes nothing but zero codes, masks and totals. */
+
+/* One item per slot: 1 where an allocated brick holds weight (vd_sparse_brick_weighted), the only
+ * bricks the passes below read. */
+__kernel void vd_sparse_mc_weighted(__global const float* weight, __global const int* nbr, __global uchar* weighted,
+                                    int vd_items) {
+  int slot = get_global_id(0);
+  if (slot >= vd_items) return;
+  weighted[slot] = (uchar)(nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0 &&
+                           vd_sparse_brick_weighted(weight, slot));
+}
 
 __kernel void vd_sparse_mc_classify(__global const float* tsdf, __global const float* weight, __global const int* nbr,
-                                    __global const uchar* tri_counts, __global ushort* codes, __global uint* row_tris,
-                                    int vd_items) {
+                                    __global const uchar* weighted, __global const uchar* tri_counts,
+                                    __global ushort* codes, __global uint* row_tris, int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
   uint total = 0u;
   int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
-  int present = nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0;
+  int present = weighted[slot];
   for (int x = 0; x < VD_BRICK; ++x) {
     uint code = present ? vd_sparse_cell_code(tsdf, weight, nbr, slot, x, y, z) : 0u;
     codes[base + x] = (ushort)code;
@@ -22,12 +32,13 @@ __kernel void vd_sparse_mc_classify(__global const float* tsdf, __global const f
 }
 
 __kernel void vd_sparse_mc_masks(__global const float* tsdf, __global const ushort* codes, __global const int* nbr,
-                                 __global uchar* masks, __global uint* row_verts, int vd_items) {
+                                 __global const uchar* weighted, __global uchar* masks, __global uint* row_verts,
+                                 int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
   int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
-  int present = nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0;
+  int present = weighted[slot];
   uint total = 0u;
   for (int x = 0; x < VD_BRICK; ++x) {
     uint m = present ? vd_sparse_vertex_mask(tsdf, codes, nbr, slot, x, y, z) : 0u;

@@ -370,6 +370,25 @@ TEST_F(SparseMeshParityTest, RingAllocationCompletesTheActiveSet) {
   DeviceMesh again;
   ASSERT_TRUE(ops.MarchingCubes(*f.table, *f.pool, &again).ok());
   EXPECT_EQ(again.num_triangles, nt) << "unobserved bricks add no surface";
+  {
+    // Marching cubes skipped exactly the ring's bricks (no weight), and the mesh is the CPU's,
+    // which classifies every brick.
+    const uint32_t grown = used + *added;
+    const cpu::BrickTable now = f.Reference(ctx);
+    const size_t voxels = size_t(grown) * VD_BRICK_VOXELS;
+    const std::vector<float> tsdf = test::FromDevice(ctx, f.pool->tsdf, voxels),
+                             weight = test::FromDevice(ctx, f.pool->weight, voxels);
+    const std::vector<uint32_t> color = test::FromDevice(ctx, f.pool->color, voxels);
+    const std::vector<uint8_t> weighted = cpu::SparseBricksWeighted(now, grown, weight.data());
+    EXPECT_EQ(test::FromDevice(ctx, ops.bricks_weighted(), grown), weighted);
+    // The ring's bricks take the slots after the fused ones; a few fused bricks hold no weight
+    // either (the band reached them, no voxel centre fell inside it): measured 12 of 964.
+    EXPECT_EQ(std::count(weighted.begin() + used, weighted.end(), uint8_t(0)), std::ptrdiff_t(*added));
+    EXPECT_LT(std::count(weighted.begin(), weighted.begin() + used, uint8_t(0)), std::ptrdiff_t(used / 20));
+    const cpu::McMesh cm2 = cpu::SparseMarchingCubes(now, grown, tsdf.data(), weight.data(), color.data());
+    ASSERT_EQ(cm2.triangles.size(), 3 * size_t(again.num_triangles));
+    EXPECT_EQ(test::FromDevice(ctx, again.triangles, cm2.triangles.size()), cm2.triangles);
+  }
   ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
   EXPECT_GT(active.count, m_before);
   // Against the dense grid's set: only the silhouette cell's points (see ActiveSetMatches...) differ.

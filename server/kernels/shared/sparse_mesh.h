@@ -56,6 +56,18 @@ VD_INLINE int vd_brick_voxel_at(VD_GLOBAL const int* nbr, int slot, int x, int y
 /* The distance at a pool index, 1 (unobserved, at rest) for -1. */
 VD_INLINE float vd_pool_tsdf(VD_GLOBAL const float* tsdf, int i) { return i < 0 ? 1.0f : tsdf[i]; }
 
+/* 1 when the brick in `slot` holds weight in any of its 512 voxels. Every cell of a brick has its
+ * origin corner there, so a brick without weight has only invalid cells (code 0), and every edge
+ * leaving its points borders only those cells (mask 0): marching cubes writes zeros for it without
+ * reading its neighbours. Such bricks are the non-rigid active set's ring and the coarse levels'
+ * corners, allocated for the field and never fused. */
+VD_INLINE int vd_sparse_brick_weighted(VD_GLOBAL const float* weight, int slot) {
+  int base = slot * VD_BRICK_VOXELS;
+  for (int i = 0; i < VD_BRICK_VOXELS; ++i)
+    if (weight[base + i] > 0.0f) return 1;
+  return 0;
+}
+
 /* Cell code of local cell (x, y, z) of `slot` (coordinates -1..7). */
 VD_INLINE vd_uint vd_sparse_cell_code(VD_GLOBAL const float* tsdf, VD_GLOBAL const float* weight,
                                       VD_GLOBAL const int* nbr, int slot, int x, int y, int z) {

@@ -133,6 +133,13 @@ std::vector<int32_t> BrickNeighbours(const BrickTable& t, uint32_t used) {
   return nbr;
 }
 
+std::vector<uint8_t> SparseBricksWeighted(const BrickTable& t, uint32_t used, const float* weight) {
+  std::vector<uint8_t> out(used, 0);
+  for (uint32_t slot = 0; slot < used; ++slot)
+    out[slot] = uint8_t(t.slot_keys[slot] != VD_BRICK_EMPTY && vd_sparse_brick_weighted(weight, int(slot)));
+  return out;
+}
+
 McMesh SparseMarchingCubes(const BrickTable& t, uint32_t used, const float* tsdf, const float* weight,
                            const uint32_t* color) {
   const McTable& table = GetMcTable();

@@ -56,9 +56,12 @@ void BrickPoolMove(const uint32_t* keep, uint32_t used, float* tsdf, float* weig
 void BrickFieldMove(const uint32_t* keep, uint32_t used, vd_float4* def_pos, vd_float4* def_rot);
 // The 27 neighbour slots of each of the first `used` slots (VD_BRICK_NEIGHBOURS per slot).
 std::vector<int32_t> BrickNeighbours(const BrickTable& table, uint32_t used);
+// vd_sparse_mc_weighted for the first `used` slots: 1 where an allocated brick holds weight.
+std::vector<uint8_t> SparseBricksWeighted(const BrickTable& table, uint32_t used, const float* weight);
 // Marching cubes over the first `used` slots of a pool (shared/sparse_mesh.h), in the device's
 // order (slot, then row, then x), with the standard library's scan: positions_grid in global grid
-// coordinates; codes one per pool voxel.
+// coordinates; codes one per pool voxel. Every allocated brick is classified here; the device
+// skips those SparseBricksWeighted leaves out, which must not change the mesh.
 McMesh SparseMarchingCubes(const BrickTable& table, uint32_t used, const float* tsdf, const float* weight,
                            const uint32_t* color);
 

@@ -155,7 +155,10 @@ class DeviceOps {
   // Marching cubes over every brick of a sparse volume (shared/sparse_mesh.h; builds the table's
   // neighbours): positions_grid in global grid coordinates (the bricks tile space from the world
   // origin), normals, colors, triangles.
+  // Bricks without weight are skipped (no valid cell: shared/sparse_mesh.h vd_sparse_brick_weighted).
   Status MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& pool, DeviceMesh* mesh);
+  // Per slot, whether the last MarchingCubes over bricks read it (tests).
+  const ocl::Buffer<uint8_t>& bricks_weighted() const { return mc_brick_weighted_; }
   // positions = origin + voxel_size * positions_grid (the rigid placement).
   Status GridToWorld(const VdVolume& vol, DeviceMesh* mesh);
   // positions = S(positions_grid) through the grid's deformation field.
@@ -217,6 +220,9 @@ class DeviceOps {
   ocl::Buffer<uint16_t> mc_codes_;
   ocl::Buffer<uint8_t> mc_masks_;
   ocl::Buffer<uint32_t> mc_vert_offset_;
+  // Bricks only, per slot: 1 where the brick holds weight; the others (the active set's ring and
+  // coarse corners) have no valid cell, so classification and masks skip them.
+  ocl::Buffer<uint8_t> mc_brick_weighted_;
   // Per grid row: triangle and vertex totals and their exclusive prefix sums.
   // Per triangle of the last Rasterize, its set-up (shared/raster.h), read by the resolve.
   ocl::Buffer<VdRasterSetup> raster_setups_;

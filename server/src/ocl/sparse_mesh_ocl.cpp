@@ -20,9 +20,12 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
   VD_RETURN_IF_ERROR(table.BuildNeighbours(*ctx_, counts.used));
   const ocl::Buffer<int32_t>& nbr = table.neighbours();
   VD_RETURN_IF_ERROR(ReserveMarchingCubes(n, rows));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_brick_weighted_, used));
+  VD_RETURN_IF_ERROR(ocl::kSparseMcWeighted(*ctx_, used, pool.weight, nbr, mc_brick_weighted_));
+  VD_RETURN_IF_ERROR(ocl::kSparseMcClassify(*ctx_, rows, pool.tsdf, pool.weight, nbr, mc_brick_weighted_,
+                                            mc_tri_counts_, mc_codes_, mc_row_tris_));
   VD_RETURN_IF_ERROR(
-      ocl::kSparseMcClassify(*ctx_, rows, pool.tsdf, pool.weight, nbr, mc_tri_counts_, mc_codes_, mc_row_tris_));
-  VD_RETURN_IF_ERROR(ocl::kSparseMcMasks(*ctx_, rows, pool.tsdf, mc_codes_, nbr, mc_masks_, mc_row_verts_));
+      ocl::kSparseMcMasks(*ctx_, rows, pool.tsdf, mc_codes_, nbr, mc_brick_weighted_, mc_masks_, mc_row_verts_));
   VD_ASSIGN_OR_RETURN(const bool any, SizeMesh(rows, mesh));
   if (!any) return Status::Ok();
   VD_RETURN_IF_ERROR(ocl::kSparseMcVertices(*ctx_, rows, pool.tsdf, pool.color, nbr, table.slot_keys(), mc_masks_,

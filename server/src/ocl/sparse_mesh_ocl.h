@@ -8,11 +8,15 @@
 
 namespace vd::ocl {
 
+// One item per slot: which slots hold a brick with weight (the others are skipped below).
+inline constexpr Kernel<void(const Buffer<float>& weight, const Buffer<int32_t>& nbr, Buffer<uint8_t>& weighted)>
+    kSparseMcWeighted{"vd_sparse_mc_weighted"};
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<float>& weight, const Buffer<int32_t>& nbr,
-                             const Buffer<uint8_t>& tri_counts, Buffer<uint16_t>& codes, Buffer<uint32_t>& row_tris)>
+                             const Buffer<uint8_t>& weighted, const Buffer<uint8_t>& tri_counts,
+                             Buffer<uint16_t>& codes, Buffer<uint32_t>& row_tris)>
     kSparseMcClassify{"vd_sparse_mc_classify"};
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint16_t>& codes, const Buffer<int32_t>& nbr,
-                             Buffer<uint8_t>& masks, Buffer<uint32_t>& row_verts)>
+                             const Buffer<uint8_t>& weighted, Buffer<uint8_t>& masks, Buffer<uint32_t>& row_verts)>
     kSparseMcMasks{"vd_sparse_mc_masks"};
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint32_t>& color, const Buffer<int32_t>& nbr,
                              const Buffer<uint32_t>& slot_keys, const Buffer<uint8_t>& masks,
