@@ -10,8 +10,8 @@ __kernel void vd_sparse_mc_weighted(__global const float* weight, __global const
                                     int vd_items) {
   int slot = get_global_id(0);
   if (slot >= vd_items) return;
-  weighted[slot] = (uchar)(nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0 &&
-                           vd_sparse_brick_weighted(weight, slot));
+  weighted[slot] =
+      (uchar)(nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] >= 0 && vd_sparse_brick_weighted(weight, slot));
 }
 
 __kernel void vd_sparse_mc_classify(__global const float* tsdf, __global const float* weight, __global const int* nbr,
