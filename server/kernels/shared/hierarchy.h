@@ -49,22 +49,30 @@ VD_INLINE vd_float4 vd_level_restrict(int K, VdActive coarse, int s, VdActive fi
   float inv = 1.0f / (float)(s + 1);
   for (int dz = -s; dz <= s; ++dz) {
     for (int dy = -s; dy <= s; ++dy) {
-      for (int dx = -s; dx <= s; ++dx) {
-        int kf = vd_lattice_compact(fine.lat, fine.nbr, fine.compact, slot, s * X + dx, s * Y + dy, s * Z + dz);
-        if (kf < 0) continue;
-        float w = (1.0f - (float)(dx < 0 ? -dx : dx) * inv) * (1.0f - (float)(dy < 0 ? -dy : dy) * inv) *
-                  (1.0f - (float)(dz < 0 ? -dz : dz) * inv);
-        vd_float4 rest = VD_F4(fine.lat.origin.x + fine.lat.spacing * (float)(s * GX + dx),
-                               fine.lat.origin.y + fine.lat.spacing * (float)(s * GY + dy),
-                               fine.lat.origin.z + fine.lat.spacing * (float)(s * GZ + dz), 0.0f);
-        acc = acc + (x_f[kf] - rest) * w;
-        wsum += w;
-        /* q and -q are one rotation: each is added on the side of the first one met. */
-        vd_float4 q = rot_f[kf];
-        if (!found) qref = q;
-        found = 1;
-        if (vd_dot3(q, qref) + q.w * qref.w < 0.0f) q = -q;
-        qsum = qsum + q * w;
+      /* The row dx = -s..s in runs of consecutive entries (one table lookup a run). */
+      for (int run = -s; run <= s;) {
+        int run_end = vd_lattice_run_end(fine.lat, s * X + run, s * X + s) - s * X;
+        int e0 = vd_lattice_entry(fine.lat, fine.nbr, slot, s * X + run, s * Y + dy, s * Z + dz);
+        int dx0 = run;
+        run = run_end + 1;
+        if (e0 < 0) continue;
+        for (int dx = dx0; dx <= run_end; ++dx) {
+          int kf = fine.compact[e0 + dx - dx0];
+          if (kf < 0) continue;
+          float w = (1.0f - (float)(dx < 0 ? -dx : dx) * inv) * (1.0f - (float)(dy < 0 ? -dy : dy) * inv) *
+                    (1.0f - (float)(dz < 0 ? -dz : dz) * inv);
+          vd_float4 rest = VD_F4(fine.lat.origin.x + fine.lat.spacing * (float)(s * GX + dx),
+                                 fine.lat.origin.y + fine.lat.spacing * (float)(s * GY + dy),
+                                 fine.lat.origin.z + fine.lat.spacing * (float)(s * GZ + dz), 0.0f);
+          acc = acc + (x_f[kf] - rest) * w;
+          wsum += w;
+          /* q and -q are one rotation: each is added on the side of the first one met. */
+          vd_float4 q = rot_f[kf];
+          if (!found) qref = q;
+          found = 1;
+          if (vd_dot3(q, qref) + q.w * qref.w < 0.0f) q = -q;
+          qsum = qsum + q * w;
+        }
       }
     }
   }

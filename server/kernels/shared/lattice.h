@@ -98,10 +98,20 @@ VD_INLINE int vd_lattice_entry(VdLattice l, VD_GLOBAL const int* nbr, int slot, 
   }
   int dx = x < 0 ? -1 : (x >= l.dim_x ? 1 : 0), dy = y < 0 ? -1 : (y >= l.dim_y ? 1 : 0),
       dz = z < 0 ? -1 : (z >= l.dim_z ? 1 : 0);
-  int s = nbr[27 * slot + (dx + 1) + 3 * (dy + 1) + 9 * (dz + 1)];
+  /* Most points lie in the brick itself, which needs no table read. */
+  int s = (dx | dy | dz) == 0 ? slot : nbr[27 * slot + (dx + 1) + 3 * (dy + 1) + 9 * (dz + 1)];
   if (s < 0) return -1;
   return s * vd_lattice_brick_points(l) + (x - dx * l.dim_x) +
          l.dim_x * ((y - dy * l.dim_y) + l.dim_y * (z - dz * l.dim_z));
+}
+
+/* The last x of the run that starts at local x and ends at most at x_last, over which entries are
+ * consecutive (entry(x + i) = entry(x) + i, all present or all absent): runs break where a brick
+ * (or a dense grid) begins and ends, at 0 and dim_x. Walking a window by runs looks up one entry
+ * per run instead of one per point, in the same point order. */
+VD_INLINE int vd_lattice_run_end(VdLattice l, int x, int x_last) {
+  int end = x < 0 ? -1 : (x < l.dim_x ? l.dim_x - 1 : x_last);
+  return end < x_last ? end : x_last;
 }
 
 /* The active (compact) index of that point, -1 outside M or where there is no point. */
