@@ -115,6 +115,17 @@ VD_INLINE int vd_brick_allocate(VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, V
   return vd_brick_give_slot(h, slots, slot_keys, pool, counters, key);
 }
 
+/* vd_brick_allocate for the brick at brick coordinates (x, y, z); beyond the keys' reach counts a
+ * failure too. Returns 1 on a failure, else 0 (to sum a walk's failures). */
+VD_INLINE int vd_brick_allocate_at(VD_GLOBAL vd_uint* keys, VD_GLOBAL int* slots, VD_GLOBAL vd_uint* slot_keys,
+                                   vd_uint capacity, vd_uint pool, VD_GLOBAL vd_uint* counters, int x, int y, int z) {
+  if (!vd_brick_coords_valid(x, y, z)) {
+    VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
+    return 1;
+  }
+  return !vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, vd_brick_pack(x, y, z));
+}
+
 /* Puts a key back into pool slot `slot` (restoring a table from its slots' keys, as a checkpoint
  * stores them): returns 0 and counts a failure when the key is not a brick's, is there already
  * (a duplicate) or finds no entry. */

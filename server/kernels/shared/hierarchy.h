@@ -227,13 +227,7 @@ VD_INLINE int vd_brick_level_allocate(int e, int s, VD_GLOBAL const int* nbr, VD
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
     if ((ox && !sx) || (oy && !sy) || (oz && !sz)) continue;
     if (nbr[27 * slot + (ox + 1) + 3 * (oy + 1) + 9 * (oz + 1)] >= 0) continue;
-    if (!vd_brick_coords_valid(bx + ox, by + oy, bz + oz)) {
-      VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
-      ++failures;
-      continue;
-    }
-    failures +=
-        !vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, vd_brick_pack(bx + ox, by + oy, bz + oz));
+    failures += vd_brick_allocate_at(keys, slots, slot_keys, capacity, pool, counters, bx + ox, by + oy, bz + oz);
   }
   return failures;
 }

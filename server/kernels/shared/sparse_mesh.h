@@ -234,13 +234,7 @@ VD_INLINE int vd_brick_ring_allocate(int slot, VD_GLOBAL const vd_uchar* surface
         any = surface[slot * VD_BRICK_VOXELS + x + VD_BRICK * (y + VD_BRICK * z)];
       }
     if (!any) continue;
-    if (!vd_brick_coords_valid(bx + ox, by + oy, bz + oz)) {
-      VD_ATOMIC_INC_U32(&counters[VD_BRICK_COUNT_FAILED]);
-      ++failures;
-      continue;
-    }
-    failures +=
-        !vd_brick_allocate(keys, slots, slot_keys, capacity, pool, counters, vd_brick_pack(bx + ox, by + oy, bz + oz));
+    failures += vd_brick_allocate_at(keys, slots, slot_keys, capacity, pool, counters, bx + ox, by + oy, bz + oz);
   }
   return failures;
 }
