@@ -29,8 +29,12 @@ typedef struct {
   float spacing;
   /* 0: one dense grid; 1: the pool's bricks. */
   int bricks;
+  /* Bricks: log2 of the points a side (a power of two), so that an entry splits into slot and local
+   * coordinates by shifts and masks: an integer division by a kernel argument is scalar on a CPU
+   * device, and every solver kernel splits entries. 0 on a dense grid, which divides. */
+  int log2_dim;
   /* Padding keeps the struct a multiple of 16 bytes on both sides. */
-  int pad0, pad1, pad2;
+  int pad1, pad2;
 } VdLattice;
 
 /* The lattice of a dense grid (its own spacing). */
@@ -42,7 +46,8 @@ VD_INLINE VdLattice vd_lattice_dense(VdVolume vol) {
   l.dim_z = vol.dim_z;
   l.spacing = vol.voxel_size;
   l.bricks = 0;
-  l.pad0 = l.pad1 = l.pad2 = 0;
+  l.log2_dim = 0;
+  l.pad1 = l.pad2 = 0;
   return l;
 }
 
@@ -53,7 +58,9 @@ VD_INLINE VdLattice vd_lattice_bricks(float voxel_size, int s) {
   l.dim_x = l.dim_y = l.dim_z = VD_BRICK / s;
   l.spacing = voxel_size * (float)s;
   l.bricks = 1;
-  l.pad0 = l.pad1 = l.pad2 = 0;
+  l.log2_dim = 0;
+  while ((1 << l.log2_dim) < l.dim_x) ++l.log2_dim;
+  l.pad1 = l.pad2 = 0;
   return l;
 }
 
@@ -67,6 +74,8 @@ VD_INLINE VdLattice vd_lattice_level(VdLattice l, int s) {
     c.dim_x = l.dim_x / s;
     c.dim_y = l.dim_y / s;
     c.dim_z = l.dim_z / s;
+    c.log2_dim = 0;
+    while ((1 << c.log2_dim) < c.dim_x) ++c.log2_dim;
   } else {
     c.dim_x = (l.dim_x - 1) / s + 2;
     c.dim_y = (l.dim_y - 1) / s + 2;
@@ -80,6 +89,14 @@ VD_INLINE int vd_lattice_brick_points(VdLattice l) { return l.dim_x * l.dim_y * 
 
 /* The brick slot and local coordinates of an entry. */
 VD_INLINE void vd_lattice_point(VdLattice l, int entry, int* slot, int* x, int* y, int* z) {
+  if (l.bricks) {
+    int sh = l.log2_dim, mask = (1 << sh) - 1;
+    *slot = entry >> (3 * sh);
+    *x = entry & mask;
+    *y = (entry >> sh) & mask;
+    *z = (entry >> (2 * sh)) & mask;
+    return;
+  }
   int per = vd_lattice_brick_points(l);
   *slot = entry / per;
   int i = entry - *slot * per;
@@ -101,8 +118,8 @@ VD_INLINE int vd_lattice_entry(VdLattice l, VD_GLOBAL const int* nbr, int slot, 
   /* Most points lie in the brick itself, which needs no table read. */
   int s = (dx | dy | dz) == 0 ? slot : nbr[27 * slot + (dx + 1) + 3 * (dy + 1) + 9 * (dz + 1)];
   if (s < 0) return -1;
-  return s * vd_lattice_brick_points(l) + (x - dx * l.dim_x) +
-         l.dim_x * ((y - dy * l.dim_y) + l.dim_y * (z - dz * l.dim_z));
+  int sh = l.log2_dim;
+  return (s << (3 * sh)) + (x - dx * l.dim_x) + (((y - dy * l.dim_y) + ((z - dz * l.dim_z) << sh)) << sh);
 }
 
 /* The last x of the run that starts at local x and ends at most at x_last, over which entries are
@@ -148,10 +165,18 @@ VD_INLINE vd_float4 vd_lattice_position(VdLattice l, VD_GLOBAL const vd_uint* sl
  * (x, y, z) of a brick, in local coordinates of the same brick: x / s, on a dense grid kept one
  * point inside the last row so that the cell's far corners exist. */
 VD_INLINE void vd_lattice_coarse_cell(VdLattice coarse, int s, int x, int y, int z, int* cx, int* cy, int* cz) {
+  if (coarse.bricks) {
+    /* Local coordinates are not negative and s is a power of two: a shift (see log2_dim). */
+    int k = 0;
+    while ((1 << k) < s) ++k;
+    *cx = x >> k;
+    *cy = y >> k;
+    *cz = z >> k;
+    return;
+  }
   *cx = x / s;
   *cy = y / s;
   *cz = z / s;
-  if (coarse.bricks) return;
   *cx = vd_min_i(*cx, coarse.dim_x - 2);
   *cy = vd_min_i(*cy, coarse.dim_y - 2);
   *cz = vd_min_i(*cz, coarse.dim_z - 2);
