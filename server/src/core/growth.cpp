@@ -139,6 +139,7 @@ std::vector<GrowthBrick> PlanGrowth(const cv::Mat& depth, float inv_scale, float
   std::vector<int32_t> tri_of(size_t(w) * h, -1);
   std::vector<vd_float4> observed(size_t(w) * h);
   const float band = params.explained_truncations * truncation;
+  int unexplained_count = 0;
   for (int sy = 0; sy < h; ++sy)
     for (int sx = 0; sx < w; ++sx) {
       const int u = sx * s, v = sy * s, i = sy * w + sx;
@@ -157,7 +158,11 @@ std::vector<GrowthBrick> PlanGrowth(const cv::Mat& depth, float inv_scale, float
       const vd_float4 pc = VD_F4((float(u) - cam.cx) / cam.fx * z, (float(v) - cam.cy) / cam.fy * z, z, 1.f);
       observed[i] = vd_pose_apply(cam_to_world, pc);
       unexplained[i] = 1;
+      ++unexplained_count;
     }
+  // The samples that grow are some of the unexplained ones: too few, and the frame grows nothing
+  // (most frames; the distance transform below is the plan's larger cost).
+  if (unexplained_count < params.min_frame_samples) return {};
   std::vector<int> chamfer;
   const std::vector<int> nearest = NearestValid(has_disp, w, h, params.search, &chamfer);
   const vd_float4 eye = VD_F4(cam_to_world.r0.w, cam_to_world.r1.w, cam_to_world.r2.w, 1.f);
