@@ -1080,7 +1080,10 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
     } else {
       VD_RETURN_IF_ERROR(ops_.IntegrateTsdf(volume_, cam_, ToVdPose(pose_.inverse()), maps_.depth_raw_m, maps_.rgba));
     }
-    if (nonrigid && bricks_) VD_RETURN_IF_ERROR(GrowBricks(frame, &result));
+    if (nonrigid && bricks_) {
+      VD_RETURN_IF_ERROR(GrowBricks(frame, &result));
+      VD_RETURN_IF_ERROR(EvictUnseenBricks(&result));
+    }
     VD_RETURN_IF_ERROR(ctx_->Finish());
     result.times[Stage::kIntegrate] = MsSince(t0);
     ++frames_fused_;
@@ -1124,6 +1127,7 @@ Status Engine::CreateBricks() {
   bricks_evicted_ = 0;
   bricks_in_use_ = 0;
   bricks_failed_seen_ = 0;
+  sightings_.Clear();
   const bool with_field = !params_.rigid_only;
   if (bricks_ && pool_ && pool_->with_field == with_field) {
     // A new model in the same table and pool: every brick back at rest.
@@ -1155,9 +1159,9 @@ Status Engine::RefreshBricks(uint32_t used_before, FrameResult* result) {
   bricks_in_use_ = counts.used;
   result->bricks_used = counts.used;
   result->bricks_pool = bricks_->pool();
-  // Inserts that found no room since the last count: the pool is full (reported, never evicted
-  // under a deforming model: every brick it holds is part of the surface or its support).
-  result->bricks_failed = int64_t(counts.failed) - int64_t(bricks_failed_seen_);
+  // Inserts that found no room since the last count: the pool is full (reported; the bricks seen
+  // longest ago make room at the end of the frame, EvictUnseenBricks).
+  result->bricks_failed += int64_t(counts.failed) - int64_t(bricks_failed_seen_);
   bricks_failed_seen_ = counts.failed;
   if (result->bricks_failed > 0 && !pool_full_reported_)
     VD_LOG_WARNING << "the brick pool is full (" << counts.used << " bricks, --max-grid-mb " << params_.max_grid_mb
@@ -1178,6 +1182,8 @@ Status Engine::GrowBricks(const RgbdFrame& frame, FrameResult* result) {
   grow_deformed_.resize(nv);
   VD_RETURN_IF_ERROR(ctx_->Download(live_.ids, grow_ids_.data(), pixels));
   VD_RETURN_IF_ERROR(ctx_->Download(mesh_.positions, grow_deformed_.data(), nv));
+  sightings_.See(grow_ids_.data(), cam_.width, cam_.height, kSightingStep, host_tris_.data(), mesh_.num_triangles,
+                 host_grid_.data(), uint32_t(frames_fused_ + 1));
   const VdVolume& vol = volume_.vol;
   std::vector<GrowthBrick> plan =
       PlanGrowth(frame.depth, 1.f / frame.depth_scale, params_.min_depth, params_.max_depth, cam_, ToVdPose(pose_),
@@ -1214,6 +1220,32 @@ Status Engine::GrowBricks(const RgbdFrame& frame, FrameResult* result) {
   return Status::Ok();
 }
 
+Status Engine::EvictUnseenBricks(FrameResult* result) {
+  result->bricks_evicted_total = bricks_evicted_;
+  // Failed inserts not counted yet (a ring or corners that found no room add no brick, so no
+  // refresh counted them).
+  VD_ASSIGN_OR_RETURN(const ocl::BrickCounts before, bricks_->Counts(*ctx_));
+  result->bricks_failed += int64_t(before.failed) - int64_t(bricks_failed_seen_);
+  bricks_failed_seen_ = before.failed;
+  if (result->bricks_failed <= 0) return Status::Ok();
+  VD_ASSIGN_OR_RETURN(const std::vector<uint32_t> keys, bricks_->DownloadSlotKeys(*ctx_, before.used));
+  const uint32_t want = std::max(bricks_->pool() / 4, uint32_t(result->bricks_failed));
+  VD_ASSIGN_OR_RETURN(const uint32_t dropped,
+                      bricks_->Drop(ops_, *pool_, sightings_.Oldest(keys, uint32_t(frames_fused_ + 1), want)));
+  if (dropped == 0) return Status::Ok();
+  // Compaction restarts the table's counters (the slots kept are the ones in use).
+  VD_ASSIGN_OR_RETURN(const ocl::BrickCounts after, bricks_->Counts(*ctx_));
+  bricks_in_use_ = after.used;
+  bricks_failed_seen_ = after.failed;
+  bricks_evicted_ += dropped;
+  result->bricks_evicted = dropped;
+  result->bricks_evicted_total = bricks_evicted_;
+  result->bricks_used = after.used;
+  VD_LOG_INFO << "brick pool full (" << bricks_->pool() << " bricks, --max-grid-mb " << params_.max_grid_mb
+              << "): dropped the " << dropped << " bricks seen longest ago";
+  return Status::Ok();
+}
+
 Status Engine::PrepareBricks(FrameResult* result) {
   result->bricks_used = bricks_in_use_;
   result->bricks_pool = bricks_->pool();
@@ -1240,8 +1272,7 @@ Status Engine::IntegrateBricks(FrameResult* result) {
     return bricks_->Counts(*ctx_);
   };
   VD_ASSIGN_OR_RETURN(ocl::BrickCounts counts, allocate());
-  // A deforming model keeps every brick (its field is the surface's support): a full pool is
-  // reported, not evicted.
+  // (A deforming model is fused through its active set, not here: EvictUnseenBricks.)
   if (counts.unfused > 0 && !pool_->with_field) {
     // The pool is full: the bricks seen longest ago make room (a quarter of the pool at once, so this
     // stays rare), then the frame's band is allocated again.

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "core/brick_sightings.h"
 #include "core/checkpoint.h"
 #include "core/features.h"
 #include "core/hierarchy.h"
@@ -346,6 +347,16 @@ class Engine {
   // Depth the live model does not explain gets bricks (core/growth.h), their field started at the
   // nearest rendered surface's motion, and is fused into them once through it.
   Status GrowBricks(const RgbdFrame& frame, FrameResult* result);
+  // A deforming model whose pool had no room this frame (a ring, a coarse corner or growth not
+  // taken): the bricks seen longest ago (sightings_) are dropped, a quarter of the pool at once,
+  // so the next frame's support fits. Bricks in view and next to them are never dropped.
+  Status EvictUnseenBricks(FrameResult* result);
+  // When each brick of a deforming model was last under the rendered live model (GrowBricks
+  // marks them every frame from the raster it downloads anyway).
+  BrickSightings sightings_;
+  // Pixels between sightings in x and y (the bricks are 8 voxels a side: a coarse sampling finds
+  // every brick in view, at a fraction of the cost of every pixel).
+  static constexpr int kSightingStep = 4;
   // GrowBricks' host copies (the raster's triangle ids, the deformed vertices, the faces) and its
   // bricks' keys, slots and motions on the device.
   std::vector<uint32_t> grow_ids_;

@@ -177,13 +177,33 @@ StatusOr<uint32_t> BrickTable::EvictOldest(DeviceOps& ops, BrickPool& pool, uint
   const size_t drop = std::min<size_t>(count, order.size());
   if (drop == 0) return 0u;
   std::stable_sort(order.begin(), order.end(), [&](uint32_t a, uint32_t b) { return stamps[a] < stamps[b]; });
+  order.resize(drop);
+  return Drop(ops, pool, order);
+}
+
+StatusOr<uint32_t> BrickTable::Drop(DeviceOps& ops, BrickPool& pool, const std::vector<uint32_t>& slots) {
+  Context& ctx = ops.ctx();
+  if (slots.empty()) return 0u;
+  VD_ASSIGN_OR_RETURN(const BrickCounts counts, Counts(ctx));
   std::vector<uint32_t> keep(pool_, 0u);
   std::fill(keep.begin(), keep.begin() + counts.used, 1u);
-  for (size_t i = 0; i < drop; ++i) keep[order[i]] = 0u;
+  uint32_t dropped = 0;
+  for (const uint32_t s : slots) {
+    if (s >= counts.used) return InvalidArgument("a slot to drop that holds no brick");
+    dropped += keep[s];
+    keep[s] = 0u;
+  }
   VD_RETURN_IF_ERROR(ctx.Reserve(&keep_, pool_));
   VD_RETURN_IF_ERROR(ctx.Upload(keep_, keep.data(), pool_));
   VD_RETURN_IF_ERROR(Compact(ops, keep_, &pool));
-  return uint32_t(drop);
+  return dropped;
+}
+
+StatusOr<std::vector<uint32_t>> BrickTable::DownloadSlotKeys(Context& ctx, uint32_t used) const {
+  if (used > pool_) return InvalidArgument("more slots in use than the pool holds");
+  std::vector<uint32_t> keys(used);
+  if (used > 0) VD_RETURN_IF_ERROR(ctx.Download(slot_keys_, keys.data(), used));
+  return keys;
 }
 
 StatusOr<BrickCounts> BrickTable::Counts(Context& ctx) const {

@@ -3,6 +3,7 @@
 // shared/brick_hash.h; docs/SPARSE_VOLUME.md): typed handles of its kernels and the table they
 // work on.
 #include <cstdint>
+#include <vector>
 
 #include "ocl/kernel.h"
 #include "shared/sparse_field.h"
@@ -163,6 +164,11 @@ class BrickTable {
   // `count` of them, moving `pool` with the table (Compact); returns how many were dropped. The
   // frame numbers of ListVisible order them.
   StatusOr<uint32_t> EvictOldest(DeviceOps& ops, BrickPool& pool, uint32_t count);
+  // Drops the bricks of the given slots (each below the slots handed out; repeats count once),
+  // moving `pool` with the table (Compact); returns how many were dropped.
+  StatusOr<uint32_t> Drop(DeviceOps& ops, BrickPool& pool, const std::vector<uint32_t>& slots);
+  // The keys of the first `used` slots (the host's copy of slot_keys()).
+  StatusOr<std::vector<uint32_t>> DownloadSlotKeys(Context& ctx, uint32_t used) const;
   // The frame number the last ListVisible stamped its bricks with.
   uint32_t frame() const { return frame_; }
   // The frame each slot's brick was last listed in (0: never).
