@@ -1237,13 +1237,17 @@ Status Engine::EvictUnseenBricks(FrameResult* result) {
   VD_ASSIGN_OR_RETURN(const ocl::BrickCounts after, bricks_->Counts(*ctx_));
   bricks_in_use_ = after.used;
   bricks_failed_seen_ = after.failed;
-  bricks_evicted_ += dropped;
-  result->bricks_evicted = dropped;
+  NoteEviction(dropped, result);
   result->bricks_evicted_total = bricks_evicted_;
   result->bricks_used = after.used;
+  return Status::Ok();
+}
+
+void Engine::NoteEviction(uint32_t dropped, FrameResult* result) {
+  result->bricks_evicted = dropped;
+  bricks_evicted_ += dropped;
   VD_LOG_INFO << "brick pool full (" << bricks_->pool() << " bricks, --max-grid-mb " << params_.max_grid_mb
               << "): dropped the " << dropped << " bricks seen longest ago";
-  return Status::Ok();
 }
 
 Status Engine::PrepareBricks(FrameResult* result) {
@@ -1279,10 +1283,7 @@ Status Engine::IntegrateBricks(FrameResult* result) {
     VD_ASSIGN_OR_RETURN(const uint32_t dropped,
                         bricks_->EvictOldest(ops_, *pool_, std::max(bricks_->pool() / 4, counts.unfused)));
     if (dropped > 0) {
-      result->bricks_evicted = dropped;
-      bricks_evicted_ += dropped;
-      VD_LOG_INFO << "brick pool full (" << bricks_->pool() << " bricks, --max-grid-mb " << params_.max_grid_mb
-                  << "): dropped the " << dropped << " bricks seen longest ago";
+      NoteEviction(dropped, result);
       VD_ASSIGN_OR_RETURN(counts, allocate());
     }
   }

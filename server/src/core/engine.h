@@ -351,6 +351,8 @@ class Engine {
   // taken): the bricks seen longest ago (sightings_) are dropped, a quarter of the pool at once,
   // so the next frame's support fits. Bricks in view and next to them are never dropped.
   Status EvictUnseenBricks(FrameResult* result);
+  // Counts and logs `dropped` bricks evicted this frame (both paths).
+  void NoteEviction(uint32_t dropped, FrameResult* result);
   // When each brick of a deforming model was last under the rendered live model (GrowBricks
   // marks them every frame from the raster it downloads anyway).
   BrickSightings sightings_;
