@@ -1,5 +1,6 @@
 // The synthetic scenes: a bending tube (and its long-take variant), a waving and sliding cloth, a
-// rigid object seen by a moving camera, and an object that enters from outside the first view.
+// rigid object seen by a moving camera, an object that enters from outside the first view, and one
+// that passes through it.
 // World = frame 0's camera coordinates (x right, y down, z forward).
 #include <cmath>
 
@@ -298,10 +299,38 @@ class EnterScene : public ParametricScene {
   }
 };
 
+// "pass" (a surface that passes through the view, issue 17's eviction under a deforming model): a
+// 1.8 m x 30 cm textured strip 1 m in front of a still camera, longer than the view (+-0.61 m at
+// this depth). The first frame sees its right part (x = -0.61 to 0.60 m); over the take it slides
+// 60 cm to the right along itself, so its left end enters from the image's left edge while its right
+// end leaves past the right edge: at the end the camera sees the strip's canonical x = -1.21 to
+// 0.01 m, and the 59 cm the first frame saw right of that has been out of view for up to half the
+// take.
+// A model whose memory follows the surface must let that part go when its pool is full. As in
+// "enter", only the features see the slide.
+class PassScene : public ParametricScene {
+ public:
+  static constexpr double kSlide = 0.60;
+
+  explicit PassScene(const SyntheticOptions& options) : ParametricScene("pass", options, false) {
+    // Facing the camera: e1 right, e2 up (-y), e1 x e2 = -z.
+    AddChart(PlaneChart(Eigen::Vector3d(-1.20, 0.15, 1.0), Eigen::Vector3d(1.80, 0.0, 0.0),
+                        Eigen::Vector3d(0.0, -0.30, 0.0), Texture{606, false}));
+    FinishCharts();
+  }
+
+ protected:
+  void WorldPositions(double tau, std::vector<Eigen::Vector3d>* world) const override {
+    const Eigen::Vector3d shift(kSlide * SmoothStep(tau), 0.0, 0.0);
+    world->resize(rest().size());
+    for (size_t i = 0; i < rest().size(); ++i) (*world)[i] = rest()[i] + shift;
+  }
+};
+
 }  // namespace
 }  // namespace synthetic_internal
 
-std::vector<std::string> SyntheticSceneNames() { return {"tube", "cloth", "rigid", "bend", "enter"}; }
+std::vector<std::string> SyntheticSceneNames() { return {"tube", "cloth", "rigid", "bend", "enter", "pass"}; }
 
 StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& name, const SyntheticOptions& options) {
   VD_RETURN_IF_ERROR(options.Validate());
@@ -311,6 +340,7 @@ StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& 
   if (name == "cloth") return std::unique_ptr<SyntheticScene>(new ClothScene(options));
   if (name == "rigid") return std::unique_ptr<SyntheticScene>(new RigidScene(options));
   if (name == "enter") return std::unique_ptr<SyntheticScene>(new EnterScene(options));
+  if (name == "pass") return std::unique_ptr<SyntheticScene>(new PassScene(options));
   std::string valid;
   for (const std::string& n : SyntheticSceneNames()) valid += (valid.empty() ? "" : ", ") + n;
   return NotFound("unknown synthetic scene '" + name + "' (valid: " + valid + ")");

@@ -1,6 +1,6 @@
 // Which bricks a deforming model drops when its pool is full (core/brick_sightings.h): the ones
-// the rendered live model covered longest ago, never one in view or next to one in view (no
-// device).
+// the rendered live model covered longest ago, never one in view or within two bricks of one
+// in view (no device).
 #include "core/brick_sightings.h"
 
 #include <gtest/gtest.h>
@@ -63,19 +63,20 @@ TEST(BrickSightingsTest, TheOldestGoFirstAndNothingInViewOrBesideIt) {
   See(s, Showing({30}), 3);
   See(s, Showing({40}), 4);
   // Slots: 40 (in view now), 41 (beside it, never seen itself), 30, 10, 20, 50 (never seen), an
-  // empty slot.
-  const std::vector<uint32_t> slots = {Key(40), Key(41), Key(30), Key(10), Key(20), Key(50), VD_BRICK_EMPTY};
-  EXPECT_EQ(s.Oldest(slots, 4, 10), (std::vector<uint32_t>{5, 3, 4, 2}));
-  // At most `count`, oldest first.
-  EXPECT_EQ(s.Oldest(slots, 4, 2), (std::vector<uint32_t>{5, 3}));
-  // A later frame with nothing in view: 40 and its neighbour may go too, last.
-  EXPECT_EQ(s.Oldest(slots, 5, 10), (std::vector<uint32_t>{5, 3, 4, 2, 0, 1}));
-  // A neighbour in any of the 26 directions protects a brick.
-  See(s, View{{0u}, {0, 0, 0}, {VD_F4(8.f * 11 + 1.f, 8.f * 1 + 1.f, 8.f * -1 + 1.f, 1.f)}}, 5);
-  EXPECT_EQ(s.Oldest(slots, 5, 10), (std::vector<uint32_t>{5, 4, 2, 0, 1}));
+  // empty slot, 42 (two from 40: a coarse corner of its ring's cells) and 43 (three from it).
+  const std::vector<uint32_t> slots = {Key(40), Key(41), Key(30), Key(10), Key(20),
+                                       Key(50), VD_BRICK_EMPTY, Key(42), Key(43)};
+  EXPECT_EQ(s.Oldest(slots, 4, 10), (std::vector<uint32_t>{5, 8, 3, 4, 2}));
+  // At most `count`, oldest first (ties in slot order).
+  EXPECT_EQ(s.Oldest(slots, 4, 2), (std::vector<uint32_t>{5, 8}));
+  // A later frame with nothing in view: 40 and the bricks near it may go too, last.
+  EXPECT_EQ(s.Oldest(slots, 5, 10), (std::vector<uint32_t>{5, 8, 3, 4, 2, 0, 1, 7}));
+  // A brick seen two away in other directions too protects a brick: (12, 2, -2) keeps 10.
+  See(s, View{{0u}, {0, 0, 0}, {VD_F4(8.f * 12 + 1.f, 8.f * 2 + 1.f, 8.f * -2 + 1.f, 1.f)}}, 5);
+  EXPECT_EQ(s.Oldest(slots, 5, 10), (std::vector<uint32_t>{5, 8, 4, 2, 0, 1, 7}));
   s.Clear();
   EXPECT_EQ(s.size(), 0u);
-  EXPECT_EQ(s.Oldest(slots, 5, 10), (std::vector<uint32_t>{0, 1, 2, 3, 4, 5}));
+  EXPECT_EQ(s.Oldest(slots, 5, 10), (std::vector<uint32_t>{0, 1, 2, 3, 4, 5, 7, 8}));
 }
 
 }  // namespace

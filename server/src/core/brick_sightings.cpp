@@ -42,9 +42,9 @@ std::vector<uint32_t> BrickSightings::Oldest(const std::vector<uint32_t>& slot_k
     int bx, by, bz;
     vd_brick_unpack(slot_keys[s], &bx, &by, &bz);
     uint32_t seen = 0;
-    for (int dz = -1; dz <= 1; ++dz)
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx)
+    for (int dz = -kReach; dz <= kReach; ++dz)
+      for (int dy = -kReach; dy <= kReach; ++dy)
+        for (int dx = -kReach; dx <= kReach; ++dx)
           if (vd_brick_coords_valid(bx + dx, by + dy, bz + dz))
             seen = std::max(seen, LastSeen(vd_brick_pack(bx + dx, by + dy, bz + dz)));
     age[s] = seen;

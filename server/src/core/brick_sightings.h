@@ -3,8 +3,9 @@
 // the bricks seen longest ago). A rigid model knows it from the depth's band (the table's listing
 // stamps); a deforming one fuses only its active set, which holds the whole surface whether in
 // view or not, so "seen" is taken from the rendered live model instead: the canonical brick under
-// each pixel it covers. A brick next to one seen (its one-ring, a coarse level's corners) counts as
-// seen too: it carries the field those points are solved with.
+// each pixel it covers. A brick within two of one seen counts as seen too: it carries the field
+// those points are solved with (the one-ring of the surface's cells reaches the next brick, and a
+// coarse cell of a ring point, at most a brick a side, one further).
 #include <cstddef>
 #include <cstdint>
 #include <unordered_map>
@@ -23,14 +24,18 @@ class BrickSightings {
            const vd_float4* grid, uint32_t frame);
   // The frame the brick of `key` was last seen in (0: never).
   uint32_t LastSeen(uint32_t key) const;
-  // Up to `count` of the slots (slot_keys[s]: the key of slot s's brick) whose brick and its 26
-  // neighbours were all last seen before `frame`, seen longest ago first (ties in slot order).
+  // Up to `count` of the slots (slot_keys[s]: the key of slot s's brick) whose brick and the 124
+  // within two of it (kReach) were all last seen before `frame`, seen longest ago first (ties in slot order).
   std::vector<uint32_t> Oldest(const std::vector<uint32_t>& slot_keys, uint32_t frame, size_t count) const;
   // Forgets every sighting (a model restored from a checkpoint starts without them).
   void Clear() { last_.clear(); }
   size_t size() const { return last_.size(); }
 
  private:
+  // Bricks (per axis) a sighting protects: with one, the corners of coarse cells two bricks from the
+  // surface were dropped and allocated again every frame (the "pass" scene: 1727 bricks dropped
+  // over the take instead of 1043, and up to 129 of a frame's ring and corners not allocated).
+  static constexpr int kReach = 2;
   std::unordered_map<uint32_t, uint32_t> last_;
 };
 
