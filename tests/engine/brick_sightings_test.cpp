@@ -64,7 +64,7 @@ TEST(BrickSightingsTest, TheOldestGoFirstAndNothingInViewOrBesideIt) {
   See(s, Showing({40}), 4);
   // Slots: 40 (in view now), 41 (beside it, never seen itself), 30, 10, 20, 50 (never seen), an
   // empty slot, 42 (two from 40: a coarse corner of its ring's cells) and 43 (three from it).
-  const std::vector<uint32_t> slots = {Key(40), Key(41), Key(30), Key(10), Key(20),
+  const std::vector<uint32_t> slots = {Key(40), Key(41),        Key(30), Key(10), Key(20),
                                        Key(50), VD_BRICK_EMPTY, Key(42), Key(43)};
   EXPECT_EQ(s.Oldest(slots, 4, 10), (std::vector<uint32_t>{5, 8, 3, 4, 2}));
   // At most `count`, oldest first (ties in slot order).
