@@ -67,7 +67,8 @@ void Bind(FlagParser* f, Args* a) {
   f->Add("source", &a->source,
          "openni2[:URI] live OpenNI2 sensor (first real device, or URI; openni2:Dummy is OpenNI2's fake device); "
          "oni:FILE OpenNI2 recording; folder:DIR data set folder: VolumeDeform, 7-Scenes/BundleFusion, DeepDeform, "
-         "TUM RGB-D or KillingFusion (detected); synthetic:NAME synthetic scene (tube, cloth, rigid, bend, enter)",
+         "TUM RGB-D or KillingFusion (detected); synthetic:NAME synthetic scene (" +
+             SyntheticSceneList() + ")",
          "SPEC");
   f->Add("intrinsics", &a->source_options.intrinsics, "Override the source's intrinsics, pixels", "FX,FY,CX,CY");
   f->Add("depth-scale", &a->source_options.depth_scale, "Override the raw depth units per metre (0 = source's)", "S");

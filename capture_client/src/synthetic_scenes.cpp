@@ -332,6 +332,12 @@ class PassScene : public ParametricScene {
 
 std::vector<std::string> SyntheticSceneNames() { return {"tube", "cloth", "rigid", "bend", "enter", "pass"}; }
 
+std::string SyntheticSceneList() {
+  std::string list;
+  for (const std::string& n : SyntheticSceneNames()) list += (list.empty() ? "" : ", ") + n;
+  return list;
+}
+
 StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& name, const SyntheticOptions& options) {
   VD_RETURN_IF_ERROR(options.Validate());
   using namespace synthetic_internal;
@@ -341,9 +347,7 @@ StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& 
   if (name == "rigid") return std::unique_ptr<SyntheticScene>(new RigidScene(options));
   if (name == "enter") return std::unique_ptr<SyntheticScene>(new EnterScene(options));
   if (name == "pass") return std::unique_ptr<SyntheticScene>(new PassScene(options));
-  std::string valid;
-  for (const std::string& n : SyntheticSceneNames()) valid += (valid.empty() ? "" : ", ") + n;
-  return NotFound("unknown synthetic scene '" + name + "' (valid: " + valid + ")");
+  return NotFound("unknown synthetic scene '" + name + "' (valid: " + SyntheticSceneList() + ")");
 }
 
 }  // namespace vd

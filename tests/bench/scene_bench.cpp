@@ -16,7 +16,8 @@ int main(int argc, char** argv) {
   vd::FlagParser flags("vd_scene_bench: the engine on a synthetic scene against ground truth.\n"
                        "  vd_scene_bench --scene NAME [engine flags as for vdeform-server]");
   options.Register(&flags);
-  flags.Add("scene", &scene, "Synthetic scene: tube, cloth, rigid or bend (the tube closing to 150 degrees and staying)");
+  flags.Add("scene", &scene,
+            "Synthetic scene: " + vd::SyntheticSceneList() + " (bend: the tube closing to 150 degrees and staying)");
   flags.Add("report-every", &report_every,
             "Long takes: surface error, drift and the canonical model's truth every N frames (0 = at the end only)");
   flags.Add("feed-stride", &stride, "Feed every n-th frame (fast motion)");

@@ -55,6 +55,8 @@ class SyntheticScene {
 
 StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& name, const SyntheticOptions& options);
 std::vector<std::string> SyntheticSceneNames();
+// The names joined by ", " (help texts and errors).
+std::string SyntheticSceneList();
 
 // Ground-truth metrics. `mesh_k` is frame k's ground truth (camera coordinates).
 // Closest point on the mesh to p (brute force over a BVH-free grid is fine for tests).
