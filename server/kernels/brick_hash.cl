@@ -113,7 +113,7 @@ __kernel void vd_brick_entry_slots(__global int* visible, __global const int* sl
  * With one lane (a GPU) it is vd_sparse_integrate_row's per-voxel update. With more, the same
  * arithmetic in the same order runs on all lanes at once (the rows' first voxels placed as the rows
  * are, then p0 + step * x): the projection, the depth gather, the band test and the TSDF and weight
- * update as vectors, the colour per lane inside the band. */
+ * update as vectors, and the colour average inside the band (the observed colours gathered per lane). */
 __kernel void vd_sparse_integrate(__global const int* visible, __global const uint* slot_keys, __global float* tsdf,
                                   __global float* weight, __global uint* color, VdVolume vol, VdCamera cam,
                                   VdPose world_to_cam, __global const float* depth, __global const uint* rgba,
@@ -159,13 +159,12 @@ __kernel void vd_sparse_integrate(__global const int* visible, __global const ui
   vd_lf u = cam.fx * cx / z + cam.cx, vv = cam.fy * cy / z + cam.cy;
   vd_lf fu = floor(u + 0.5f), fv = floor(vv + 0.5f);
   vd_li inside = ahead & (fu >= 0.0f) & (fv >= 0.0f) & (fu < (float)cam.width) & (fv < (float)cam.height);
-  float du[VD_LANES], dv[VD_LANES], dd[VD_LANES];
-  int in[VD_LANES];
-  vd_lstore(fu, du);
-  vd_lstore(fv, dv);
-  vd_lstore(inside, in);
-  for (int l = 0; l < VD_LANES; ++l) dd[l] = in[l] ? depth[(int)dv[l] * cam.width + (int)du[l]] : 0.0f;
-  vd_lf d = vd_lload(dd);
+  /* Each lane's pixel (pixel 0 outside the image, then not fused), gathered without branches. */
+  int pix[VD_LANES];
+  vd_lstore(vd_lf_to_li(vd_lsel((vd_lf)0.0f, fv * (float)cam.width + fu, inside)), pix);
+  float dd[VD_LANES];
+  for (int l = 0; l < VD_LANES; ++l) dd[l] = depth[pix[l]];
+  vd_lf d = vd_lsel((vd_lf)0.0f, vd_lload(dd), inside);
   vd_lf sdf = d - cz;
   vd_li fuse = inside & (d > 0.0f) & (sdf >= -vol.truncation);
   vd_lf f = fmin((vd_lf)1.0f, sdf / vol.truncation);
@@ -173,10 +172,10 @@ __kernel void vd_sparse_integrate(__global const int* visible, __global const ui
   vd_lf w_new = w_old + 1.0f;
   vd_lstore(vd_lsel(t_old, (t_old * w_old + f) / w_new, fuse), tsdf + index0);
   vd_lstore(vd_lsel(w_old, fmin(w_new, (vd_lf)vol.max_weight), fuse), weight + index0);
-  int colour[VD_LANES];
-  vd_lstore(fuse & (fabs(sdf) < vol.truncation), colour);
-  for (int l = 0; l < VD_LANES; ++l)
-    if (colour[l]) vd_tsdf_fuse_color(color, index0 + l, rgba[(int)dv[l] * cam.width + (int)du[l]]);
+  vd_li colour = fuse & (fabs(sdf) < vol.truncation);
+  vd_uint obs[VD_LANES];
+  for (int l = 0; l < VD_LANES; ++l) obs[l] = rgba[pix[l]];
+  vd_tsdf_fuse_color_lanes(color, index0, vd_lload(obs), colour);
 #endif
 }
 

@@ -26,6 +26,24 @@ VD_INLINE void vd_tsdf_fuse_color(VD_GLOBAL vd_uint* color, int index, vd_uint c
   color[index] = vd_pack_rgba(c.x, c.y, c.z, cw_new);
 }
 
+#if defined(__OPENCL_C_VERSION__) && VD_LANES > 1
+/* vd_tsdf_fuse_color on VD_LANES consecutive voxels from index0 at once: the lanes where `take` is
+ * set and the observation carries colour (alpha > 0) average it in, with vd_tsdf_fuse_color's
+ * arithmetic in its order (so the same bits), the others keep theirs. */
+VD_INLINE void vd_tsdf_fuse_color_lanes(VD_GLOBAL vd_uint* color, int index0, vd_lu c_obs, vd_li take) {
+  vd_lu c_old = vd_lload(color + index0);
+  take = take & (vd_li)((c_obs >> 24) != (vd_lu)0u);
+  vd_lf cw = vd_lu_to_lf(c_old >> 24), inv = cw + 1.0f;
+  vd_lf r = (vd_lu_to_lf(c_old & 255u) * cw + vd_lu_to_lf(c_obs & 255u)) / inv;
+  vd_lf g = (vd_lu_to_lf((c_old >> 8) & 255u) * cw + vd_lu_to_lf((c_obs >> 8) & 255u)) / inv;
+  vd_lf b = (vd_lu_to_lf((c_old >> 16) & 255u) * cw + vd_lu_to_lf((c_obs >> 16) & 255u)) / inv;
+  vd_lf a = fmin(cw + 1.0f, 255.0f);
+  vd_lu packed = vd_lf_to_lu(clamp(r + 0.5f, 0.0f, 255.0f)) | (vd_lf_to_lu(clamp(g + 0.5f, 0.0f, 255.0f)) << 8) |
+                 (vd_lf_to_lu(clamp(b + 0.5f, 0.0f, 255.0f)) << 16) | (vd_lf_to_lu(clamp(a + 0.5f, 0.0f, 255.0f)) << 24);
+  vd_lstore(select(c_old, packed, take), color + index0);
+}
+#endif
+
 VD_INLINE void vd_tsdf_integrate_point(VD_GLOBAL float* tsdf, VD_GLOBAL float* weight, VD_GLOBAL vd_uint* color,
                                        int index, vd_float4 p_cam, VdVolume vol, VdCamera cam,
                                        VD_GLOBAL const float* depth, VD_GLOBAL const vd_uint* rgba) {

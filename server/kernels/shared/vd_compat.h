@@ -83,7 +83,8 @@ inline vd_uint VD_ATOMIC_XCHG_U32(vd_uint* p, vd_uint v) { return __atomic_excha
  * vector width (16 with AVX-512, 8 with AVX2) and launches ceil(items / VD_LANES) work items (a
  * Kernel handle marked kLaned, ocl/kernel.h). A GPU and the host reference use one lane: vd_lf is
  * float there and the same math runs per item. Lane conditions are vd_li masks: combine them with
- * & and |, and pick with vd_lsel(a, b, c) = c ? b : a, lane by lane. */
+ * & and |, and pick with vd_lsel(a, b, c) = c ? b : a, lane by lane. vd_lu holds unsigned lanes (packed
+ * colours); vd_lu_to_lf, vd_lf_to_lu and vd_lf_to_li convert as C's casts do (truncating). */
 #ifdef __OPENCL_C_VERSION__
 #ifndef VD_LANES
 #define VD_LANES 1
@@ -91,21 +92,37 @@ inline vd_uint VD_ATOMIC_XCHG_U32(vd_uint* p, vd_uint v) { return __atomic_excha
 #if VD_LANES == 1
 typedef float vd_lf;
 typedef int vd_li;
+typedef uint vd_lu;
+#define vd_lu_to_lf(v) convert_float(v)
+#define vd_lf_to_lu(v) convert_uint(v)
+#define vd_lf_to_li(v) convert_int(v)
 #define vd_lload(p) ((p)[0])
 #define vd_lstore(v, p) ((p)[0] = (v))
 #elif VD_LANES == 4
 typedef float4 vd_lf;
 typedef int4 vd_li;
+typedef uint4 vd_lu;
+#define vd_lu_to_lf(v) convert_float4(v)
+#define vd_lf_to_lu(v) convert_uint4(v)
+#define vd_lf_to_li(v) convert_int4(v)
 #define vd_lload(p) vload4(0, (p))
 #define vd_lstore(v, p) vstore4((v), 0, (p))
 #elif VD_LANES == 8
 typedef float8 vd_lf;
 typedef int8 vd_li;
+typedef uint8 vd_lu;
+#define vd_lu_to_lf(v) convert_float8(v)
+#define vd_lf_to_lu(v) convert_uint8(v)
+#define vd_lf_to_li(v) convert_int8(v)
 #define vd_lload(p) vload8(0, (p))
 #define vd_lstore(v, p) vstore8((v), 0, (p))
 #elif VD_LANES == 16
 typedef float16 vd_lf;
 typedef int16 vd_li;
+typedef uint16 vd_lu;
+#define vd_lu_to_lf(v) convert_float16(v)
+#define vd_lf_to_lu(v) convert_uint16(v)
+#define vd_lf_to_li(v) convert_int16(v)
 #define vd_lload(p) vload16(0, (p))
 #define vd_lstore(v, p) vstore16((v), 0, (p))
 #else
