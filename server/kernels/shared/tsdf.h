@@ -39,7 +39,8 @@ VD_INLINE void vd_tsdf_fuse_color_lanes(VD_GLOBAL vd_uint* color, int index0, vd
   vd_lf b = (vd_lu_to_lf((c_old >> 16) & 255u) * cw + vd_lu_to_lf((c_obs >> 16) & 255u)) / inv;
   vd_lf a = fmin(cw + 1.0f, 255.0f);
   vd_lu packed = vd_lf_to_lu(clamp(r + 0.5f, 0.0f, 255.0f)) | (vd_lf_to_lu(clamp(g + 0.5f, 0.0f, 255.0f)) << 8) |
-                 (vd_lf_to_lu(clamp(b + 0.5f, 0.0f, 255.0f)) << 16) | (vd_lf_to_lu(clamp(a + 0.5f, 0.0f, 255.0f)) << 24);
+                 (vd_lf_to_lu(clamp(b + 0.5f, 0.0f, 255.0f)) << 16) |
+                 (vd_lf_to_lu(clamp(a + 0.5f, 0.0f, 255.0f)) << 24);
   vd_lstore(select(c_old, packed, take), color + index0);
 }
 #endif
