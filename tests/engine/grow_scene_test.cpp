@@ -98,9 +98,12 @@ TEST(GrowSceneTest, AFullPoolDropsTheSurfaceThatLeftTheViewAndKeepsTheViewCovere
   // 1410 bricks: the part in view and the bricks beside it need some 1300.
   p.max_grid_mb = 32;
   const Coverage c = RunStrip("pass", 0.60, p, "bricks, 32 MB pool");
-  EXPECT_GE(c.evicted, 300);
-  EXPECT_LE(c.most_used, c.pool);
   EXPECT_LT(c.pool, all.most_used);
+  // What left the view is dropped (about a third of the strip, some 600 bricks), and what is dropped
+  // is not needed again at once: bricks dropped and allocated again frame after frame would add up
+  // to more than half the strip over the take.
+  EXPECT_GE(c.evicted, 300);
+  EXPECT_LT(c.evicted, all.most_used / 2);
   // Dropping what left the view costs the view (nearly) nothing. The slide, seen only by the
   // features, leaves the reference at 97-98 % of the strip in view and 93-95 % of the end that
   // entered, varying by up to 2 points from run to run (the 32 MB pool: 96.5 % and 91.4 %).
