@@ -288,7 +288,8 @@ VD_INLINE int vd_brick_take_frustum(int mode, float u0, float v0, float u1, floa
  * grid point to the pixel its centre projects to, with |sdf| < truncation to count, so such a point
  * lies in that pixel's frustum between d - truncation and d + truncation. A tile whose valid depths
  * span at most 4 truncations is taken as one frustum over [min - truncation, max + truncation];
- * any other tile (a depth edge) pixel by pixel. Each frustum through a grid of rays at most a
+ * any other tile (a depth edge) by 2x2 groups of pixels under the same rule, and pixel by pixel
+ * where a group straddles the edge. Each frustum through a grid of rays at most a
  * quarter brick apart: one ray per pixel left 15 of the 183115 fused near-surface points of the
  * parity test's scene (8 mm voxels) outside every brick, and a tile's four corners bricks of its
  * coarse test camera. Returns the failures. */
@@ -308,15 +309,38 @@ VD_INLINE int vd_brick_take_tile(int mode, int tile, VD_GLOBAL const float* dept
                                  fmax(range.x - truncation, 0.0f), range.y + truncation, cam, cam_to_world, brick_size,
                                  keys, slots, slot_keys, capacity, pool, stamp, frame, visible, counters, seen,
                                  &n_seen);
+  /* A depth edge: each 2x2 group of pixels whose depths agree as a tile's must as one frustum, any
+   * other group pixel by pixel (a pixel's frustum takes as many rays as a group's). */
   int failures = 0;
-  for (int y = y0; y < y1; ++y)
-    for (int x = x0; x < x1; ++x) {
-      float d = depth[y * cam.width + x];
-      if (!(d > 0.0f)) continue;
-      failures +=
-          vd_brick_take_frustum(mode, (float)x - 0.5f, (float)y - 0.5f, (float)x + 0.5f, (float)y + 0.5f,
-                                fmax(d - truncation, 0.0f), d + truncation, cam, cam_to_world, brick_size, keys, slots,
-                                slot_keys, capacity, pool, stamp, frame, visible, counters, seen, &n_seen);
+  for (int gy = y0; gy < y1; gy += 2)
+    for (int gx = x0; gx < x1; gx += 2) {
+      int gx1 = vd_min_i(gx + 2, x1), gy1 = vd_min_i(gy + 2, y1);
+      float lo = 3.4e38f, hi = -3.4e38f;
+      for (int y = gy; y < gy1; ++y)
+        for (int x = gx; x < gx1; ++x) {
+          float d = depth[y * cam.width + x];
+          if (d > 0.0f) {
+            lo = fmin(lo, d);
+            hi = fmax(hi, d);
+          }
+        }
+      if (!(lo <= hi)) continue;
+      if (hi - lo <= 4.0f * truncation) {
+        failures += vd_brick_take_frustum(mode, (float)gx - 0.5f, (float)gy - 0.5f, (float)gx1 - 0.5f,
+                                          (float)gy1 - 0.5f, fmax(lo - truncation, 0.0f), hi + truncation, cam,
+                                          cam_to_world, brick_size, keys, slots, slot_keys, capacity, pool, stamp,
+                                          frame, visible, counters, seen, &n_seen);
+        continue;
+      }
+      for (int y = gy; y < gy1; ++y)
+        for (int x = gx; x < gx1; ++x) {
+          float d = depth[y * cam.width + x];
+          if (!(d > 0.0f)) continue;
+          failures += vd_brick_take_frustum(mode, (float)x - 0.5f, (float)y - 0.5f, (float)x + 0.5f, (float)y + 0.5f,
+                                            fmax(d - truncation, 0.0f), d + truncation, cam, cam_to_world, brick_size,
+                                            keys, slots, slot_keys, capacity, pool, stamp, frame, visible, counters,
+                                            seen, &n_seen);
+        }
     }
   return failures;
 }
