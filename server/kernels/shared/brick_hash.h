@@ -326,20 +326,20 @@ VD_INLINE int vd_brick_take_tile(int mode, int tile, VD_GLOBAL const float* dept
         }
       if (!(lo <= hi)) continue;
       if (hi - lo <= 4.0f * truncation) {
-        failures += vd_brick_take_frustum(mode, (float)gx - 0.5f, (float)gy - 0.5f, (float)gx1 - 0.5f,
-                                          (float)gy1 - 0.5f, fmax(lo - truncation, 0.0f), hi + truncation, cam,
-                                          cam_to_world, brick_size, keys, slots, slot_keys, capacity, pool, stamp,
-                                          frame, visible, counters, seen, &n_seen);
+        failures +=
+            vd_brick_take_frustum(mode, (float)gx - 0.5f, (float)gy - 0.5f, (float)gx1 - 0.5f, (float)gy1 - 0.5f,
+                                  fmax(lo - truncation, 0.0f), hi + truncation, cam, cam_to_world, brick_size, keys,
+                                  slots, slot_keys, capacity, pool, stamp, frame, visible, counters, seen, &n_seen);
         continue;
       }
       for (int y = gy; y < gy1; ++y)
         for (int x = gx; x < gx1; ++x) {
           float d = depth[y * cam.width + x];
           if (!(d > 0.0f)) continue;
-          failures += vd_brick_take_frustum(mode, (float)x - 0.5f, (float)y - 0.5f, (float)x + 0.5f, (float)y + 0.5f,
-                                            fmax(d - truncation, 0.0f), d + truncation, cam, cam_to_world, brick_size,
-                                            keys, slots, slot_keys, capacity, pool, stamp, frame, visible, counters,
-                                            seen, &n_seen);
+          failures +=
+              vd_brick_take_frustum(mode, (float)x - 0.5f, (float)y - 0.5f, (float)x + 0.5f, (float)y + 0.5f,
+                                    fmax(d - truncation, 0.0f), d + truncation, cam, cam_to_world, brick_size, keys,
+                                    slots, slot_keys, capacity, pool, stamp, frame, visible, counters, seen, &n_seen);
         }
     }
   return failures;
