@@ -85,7 +85,8 @@ void EngineParams::Bind(FlagParser* f) {
                "non-rigid solve");
   f->AddSwitch("sparse-volume", &sparse_volume,
                "Store the volume (and the deformation field) as 8^3 bricks allocated where the surface is: no box "
-               "fixed at the first frame, surface entering the view grows bricks, --max-grid-mb is the brick pool "
+               "fixed at the first frame, surface entering the view grows bricks, --max-grid-mb is the brick pool; "
+               "when it is full the status says so and the bricks out of view longest are dropped "
                "(non-rigid: at most 4 --levels)");
   f->Add("k-min", &k_min, "Grid points are fused non-rigidly only after taking part in this many optimisations");
   f->Add("field-rigid-threshold", &field_rigid_threshold,
