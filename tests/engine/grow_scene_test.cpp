@@ -105,10 +105,11 @@ TEST(GrowSceneTest, AFullPoolDropsTheSurfaceThatLeftTheViewAndKeepsTheViewCovere
   EXPECT_GE(c.evicted, 300);
   EXPECT_LT(c.evicted, all.most_used / 2);
   // Dropping what left the view costs the view (nearly) nothing. The slide, seen only by the
-  // features, leaves the reference at 97-98 % of the strip in view and 93-95 % of the end that
-  // entered, varying by up to 2 points from run to run (the 32 MB pool: 96.5 % and 91.4 %).
-  EXPECT_GE(c.in_view, all.in_view - 0.02);
-  EXPECT_GE(c.entered, all.entered - 0.04);
+  // features, leaves the reference at 97-98 % of the strip in view and 92.6-95.1 % of the end that
+  // entered, each run varying by up to 2-3 points (the 32 MB pool: 96.5-98.0 % and 91.4-95.1 %), so
+  // two runs may differ by that much; losing part of the view would cost far more.
+  EXPECT_GE(c.in_view, all.in_view - 0.03);
+  EXPECT_GE(c.entered, all.entered - 0.05);
   EXPECT_GE(c.in_view, 0.94);
   EXPECT_GE(c.entered, 0.88);
 }
