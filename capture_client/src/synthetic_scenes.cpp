@@ -272,60 +272,53 @@ class RigidScene : public ParametricScene {
   std::vector<Eigen::Vector3d> world_;
 };
 
-// "enter" (a scene that grows beyond its first view, issue 17): a 95 x 30 cm textured strip 1 m in
-// front of a still camera, of which the first frame sees only the right part, in the left half of
-// the image (the strip runs from x = -0.95 to 0.0 m; the image spans +-0.61 m at this depth). Over
-// the first 60 % of the take it slides 45 cm to the right along itself and rests, all of it in
-// view: its left end, never seen by the first frame, enters from the image's left edge. In the
-// canonical (first-frame) space that end lies up to 24 cm past the space around the first frame's
-// points, which a volume fixed at the first frame cannot hold. Only the features see the slide
-// (the depth of a plane moving within itself does not change), as in the cloth scene.
-class EnterScene : public ParametricScene {
+// A 30 cm high textured strip 1 m in front of a still camera, facing it, from x = `left` to
+// `left + length` m (the image spans +-0.61 m at this depth), sliding `slide` m to the right along
+// itself over the first `ramp` of the take (a smooth step) and then resting. Only the features see
+// the slide (the depth of a plane moving within itself does not change), as in the cloth scene.
+class SlidingStripScene : public ParametricScene {
  public:
-  static constexpr double kSlide = 0.45;
-
-  explicit EnterScene(const SyntheticOptions& options) : ParametricScene("enter", options, false) {
+  SlidingStripScene(const char* name, const SyntheticOptions& options, double left, double length, double slide,
+                    double ramp, uint32_t seed)
+      : ParametricScene(name, options, false), slide_(slide), ramp_(ramp) {
     // Facing the camera: e1 right, e2 up (-y), e1 x e2 = -z.
-    AddChart(PlaneChart(Eigen::Vector3d(-0.95, 0.15, 1.0), Eigen::Vector3d(0.95, 0.0, 0.0),
-                        Eigen::Vector3d(0.0, -0.30, 0.0), Texture{505, false}));
+    AddChart(PlaneChart(Eigen::Vector3d(left, 0.15, 1.0), Eigen::Vector3d(length, 0.0, 0.0),
+                        Eigen::Vector3d(0.0, -0.30, 0.0), Texture{seed, false}));
     FinishCharts();
   }
 
  protected:
   void WorldPositions(double tau, std::vector<Eigen::Vector3d>* world) const override {
-    const Eigen::Vector3d shift(kSlide * SmoothStep(std::min(1.0, tau / 0.6)), 0.0, 0.0);
+    const Eigen::Vector3d shift(slide_ * SmoothStep(std::min(1.0, tau / ramp_)), 0.0, 0.0);
     world->resize(rest().size());
     for (size_t i = 0; i < rest().size(); ++i) (*world)[i] = rest()[i] + shift;
   }
+
+ private:
+  double slide_;  // metres the strip moves to the right
+  double ramp_;   // the share of the take the slide takes
 };
+
+// "enter" (a scene that grows beyond its first view, issue 17): a 95 cm strip (x = -0.95 to 0.0 m)
+// of which the first frame sees only the right part, in the left half of the image. Over the first
+// 60 % of the take it slides 45 cm to the right and rests, all of it in view: its left end, never
+// seen by the first frame, enters from the image's left edge. In the canonical (first-frame) space
+// that end lies up to 24 cm past the space around the first frame's points, which a volume fixed at
+// the first frame cannot hold.
+std::unique_ptr<SyntheticScene> MakeEnterScene(const SyntheticOptions& options) {
+  return std::make_unique<SlidingStripScene>("enter", options, -0.95, 0.95, 0.45, 0.6, 505u);
+}
 
 // "pass" (a surface that passes through the view, issue 17's eviction under a deforming model): a
-// 1.8 m x 30 cm textured strip 1 m in front of a still camera, longer than the view (+-0.61 m at
-// this depth). The first frame sees its right part (x = -0.61 to 0.60 m); over the take it slides
-// 60 cm to the right along itself, so its left end enters from the image's left edge while its right
-// end leaves past the right edge: at the end the camera sees the strip's canonical x = -1.21 to
-// 0.01 m, and the 59 cm the first frame saw right of that has been out of view for up to half the
-// take.
-// A model whose memory follows the surface must let that part go when its pool is full. As in
-// "enter", only the features see the slide.
-class PassScene : public ParametricScene {
- public:
-  static constexpr double kSlide = 0.60;
-
-  explicit PassScene(const SyntheticOptions& options) : ParametricScene("pass", options, false) {
-    // Facing the camera: e1 right, e2 up (-y), e1 x e2 = -z.
-    AddChart(PlaneChart(Eigen::Vector3d(-1.20, 0.15, 1.0), Eigen::Vector3d(1.80, 0.0, 0.0),
-                        Eigen::Vector3d(0.0, -0.30, 0.0), Texture{606, false}));
-    FinishCharts();
-  }
-
- protected:
-  void WorldPositions(double tau, std::vector<Eigen::Vector3d>* world) const override {
-    const Eigen::Vector3d shift(kSlide * SmoothStep(tau), 0.0, 0.0);
-    world->resize(rest().size());
-    for (size_t i = 0; i < rest().size(); ++i) (*world)[i] = rest()[i] + shift;
-  }
-};
+// 1.8 m strip, longer than the view. The first frame sees its right part (x = -0.61 to 0.60 m);
+// over the whole take it slides 60 cm to the right, so its left end enters from the image's left
+// edge while its right end leaves past the right edge: at the end the camera sees the strip's
+// canonical x = -1.21 to 0.01 m, and the 59 cm the first frame saw right of that has been out of
+// view for up to half the take. A model whose memory follows the surface must let that part go
+// when its pool is full.
+std::unique_ptr<SyntheticScene> MakePassScene(const SyntheticOptions& options) {
+  return std::make_unique<SlidingStripScene>("pass", options, -1.20, 1.80, 0.60, 1.0, 606u);
+}
 
 }  // namespace
 }  // namespace synthetic_internal
@@ -345,8 +338,8 @@ StatusOr<std::unique_ptr<SyntheticScene>> MakeSyntheticScene(const std::string& 
   if (name == "bend") return std::unique_ptr<SyntheticScene>(new TubeScene(options, true));
   if (name == "cloth") return std::unique_ptr<SyntheticScene>(new ClothScene(options));
   if (name == "rigid") return std::unique_ptr<SyntheticScene>(new RigidScene(options));
-  if (name == "enter") return std::unique_ptr<SyntheticScene>(new EnterScene(options));
-  if (name == "pass") return std::unique_ptr<SyntheticScene>(new PassScene(options));
+  if (name == "enter") return MakeEnterScene(options);
+  if (name == "pass") return MakePassScene(options);
   return NotFound("unknown synthetic scene '" + name + "' (valid: " + SyntheticSceneList() + ")");
 }
 
