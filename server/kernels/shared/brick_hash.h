@@ -315,20 +315,12 @@ VD_INLINE int vd_brick_take_tile(int mode, int tile, VD_GLOBAL const float* dept
   for (int gy = y0; gy < y1; gy += 2)
     for (int gx = x0; gx < x1; gx += 2) {
       int gx1 = vd_min_i(gx + 2, x1), gy1 = vd_min_i(gy + 2, y1);
-      float lo = 3.4e38f, hi = -3.4e38f;
-      for (int y = gy; y < gy1; ++y)
-        for (int x = gx; x < gx1; ++x) {
-          float d = depth[y * cam.width + x];
-          if (d > 0.0f) {
-            lo = fmin(lo, d);
-            hi = fmax(hi, d);
-          }
-        }
-      if (!(lo <= hi)) continue;
-      if (hi - lo <= 4.0f * truncation) {
+      vd_float4 g = vd_depth_range(depth, cam, gx, gy, gx1, gy1);
+      if (!(g.x <= g.y)) continue;
+      if (g.y - g.x <= 4.0f * truncation) {
         failures +=
             vd_brick_take_frustum(mode, (float)gx - 0.5f, (float)gy - 0.5f, (float)gx1 - 0.5f, (float)gy1 - 0.5f,
-                                  fmax(lo - truncation, 0.0f), hi + truncation, cam, cam_to_world, brick_size, keys,
+                                  fmax(g.x - truncation, 0.0f), g.y + truncation, cam, cam_to_world, brick_size, keys,
                                   slots, slot_keys, capacity, pool, stamp, frame, visible, counters, seen, &n_seen);
         continue;
       }

@@ -178,11 +178,12 @@ VD_INLINE vd_uchar vd_brick_touched_from(VD_GLOBAL const float* weight, VdVolume
 VD_INLINE int vd_depth_tiles_x(VdCamera cam) { return (cam.width + VD_DEPTH_TILE - 1) / VD_DEPTH_TILE; }
 VD_INLINE int vd_depth_tiles_y(VdCamera cam) { return (cam.height + VD_DEPTH_TILE - 1) / VD_DEPTH_TILE; }
 
-VD_INLINE vd_float4 vd_depth_tile(int tile, VD_GLOBAL const float* depth, VdCamera cam) {
-  int tx = tile % vd_depth_tiles_x(cam), ty = tile / vd_depth_tiles_x(cam);
+/* The minimum and maximum valid depth of the pixels [x0, x1) x [y0, y1) (x = min, y = max; min >
+ * max when none is valid). */
+VD_INLINE vd_float4 vd_depth_range(VD_GLOBAL const float* depth, VdCamera cam, int x0, int y0, int x1, int y1) {
   float lo = 3.4e38f, hi = -3.4e38f;
-  for (int y = ty * VD_DEPTH_TILE; y < vd_min_i((ty + 1) * VD_DEPTH_TILE, cam.height); ++y)
-    for (int x = tx * VD_DEPTH_TILE; x < vd_min_i((tx + 1) * VD_DEPTH_TILE, cam.width); ++x) {
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) {
       float d = depth[y * cam.width + x];
       if (d > 0.0f) {
         lo = fmin(lo, d);
@@ -190,6 +191,12 @@ VD_INLINE vd_float4 vd_depth_tile(int tile, VD_GLOBAL const float* depth, VdCame
       }
     }
   return VD_F4(lo, hi, 0.0f, 0.0f);
+}
+
+VD_INLINE vd_float4 vd_depth_tile(int tile, VD_GLOBAL const float* depth, VdCamera cam) {
+  int tx = tile % vd_depth_tiles_x(cam), ty = tile / vd_depth_tiles_x(cam);
+  return vd_depth_range(depth, cam, tx * VD_DEPTH_TILE, ty * VD_DEPTH_TILE,
+                        vd_min_i((tx + 1) * VD_DEPTH_TILE, cam.width), vd_min_i((ty + 1) * VD_DEPTH_TILE, cam.height));
 }
 
 /* 1 when the box of grid points [x0, x1] x [y0, y1] x [z0, z1] (inclusive) may hold a grid point

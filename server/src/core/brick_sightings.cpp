@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numeric>
 
 #include "shared/brick_hash.h"
 #include "shared/raster.h"

@@ -1239,7 +1239,6 @@ Status Engine::EvictUnseenBricks(FrameResult* result) {
   bricks_in_use_ = after.used;
   bricks_failed_seen_ = after.failed;
   NoteEviction(dropped, result);
-  result->bricks_evicted_total = bricks_evicted_;
   result->bricks_used = after.used;
   return Status::Ok();
 }
@@ -1247,6 +1246,7 @@ Status Engine::EvictUnseenBricks(FrameResult* result) {
 void Engine::NoteEviction(uint32_t dropped, FrameResult* result) {
   result->bricks_evicted = dropped;
   bricks_evicted_ += dropped;
+  result->bricks_evicted_total = bricks_evicted_;
   VD_LOG_INFO << "brick pool full (" << bricks_->pool() << " bricks, --max-grid-mb " << params_.max_grid_mb
               << "): dropped the " << dropped << " bricks seen longest ago";
 }

@@ -349,9 +349,9 @@ class Engine {
   Status GrowBricks(const RgbdFrame& frame, FrameResult* result);
   // A deforming model whose pool had no room this frame (a ring, a coarse corner or growth not
   // taken): the bricks seen longest ago (sightings_) are dropped, a quarter of the pool at once,
-  // so the next frame's support fits. Bricks in view and next to them are never dropped.
+  // so the next frame's support fits. Bricks in view and within two bricks of them are never dropped.
   Status EvictUnseenBricks(FrameResult* result);
-  // Counts and logs `dropped` bricks evicted this frame (both paths).
+  // Counts `dropped` bricks evicted this frame into `result` (the frame's and the total) and logs them (both paths).
   void NoteEviction(uint32_t dropped, FrameResult* result);
   // When each brick of a deforming model was last under the rendered live model (GrowBricks
   // marks them every frame from the raster it downloads anyway).
