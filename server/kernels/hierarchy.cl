@@ -81,6 +81,14 @@ __kernel void vd_level_moments_kernel(VD_LEVELS_ARGS, int s, __global const VdCo
   vd_level_moments(get_global_id(0), VD_COARSE, s, VD_FINE, cons, cell_start, x_f, moments_c);
 }
 
+/* One work item per active point of the upper level (VD_COARSE), as the first corner of a cell;
+ * VD_FINE is the level below it (spacing ratio 2). */
+__kernel void vd_level_moments_up_kernel(VD_LEVELS_ARGS, __global const float* moments_f, __global float* moments_c,
+                                         int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_level_moments_up(get_global_id(0), VD_COARSE, VD_FINE, moments_f, moments_c);
+}
+
 /* One work item per fine active point on the bricks: the bricks its coarse corners need (the
  * slots it hands out are read by later passes only). */
 __kernel void vd_brick_level_alloc(__global const int* list_f, int s, __global const int* lat_nbr, __global uint* keys,

@@ -287,15 +287,19 @@ CoarseSystem Assemble(const cpu::ActiveSet& lvl, VdLattice cv, const std::vector
   return sys;
 }
 
-// A coarse level's system gathered from the fine constraints in place (vd_level_moments, then the
-// x0 part of the right-hand side from the blocks) on the device against the CPU, and against the
-// system built the long way: every constraint re-expressed on the level (vd_level_constraint),
-// sorted by coarse cell, its moments taken and assembled. The two are the same sums.
-TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpressedConstraints) {
-  VD_REQUIRE_OCL(ctx);
-  const Fixture f = MakeSphere();
+// A deformed fine state over the sphere's active set and constraints sorted by fine cell.
+struct FineProblem {
+  std::vector<vd_float4> x_f, rot_f;
+  std::vector<VdCorrespondence> cons;
+  std::vector<vd_uint> cell_start;
+};
+
+FineProblem MakeFineProblem(const Fixture& f) {
   const size_t m = f.fine.list.size();
-  std::vector<vd_float4> x_f(m), rot_f(m, VD_F4(0.f, 0.f, 0.f, 1.f));
+  FineProblem p;
+  std::vector<vd_float4>& x_f = p.x_f;
+  x_f.resize(m);
+  p.rot_f.assign(m, VD_F4(0.f, 0.f, 0.f, 1.f));
   for (size_t k = 0; k < m; ++k) {
     const vd_float4 r = Rest(f.vol, f.fine.list[k]);
     x_f[k] = r + VD_F4(0.01f * std::sin(9.f * r.y), 0.006f * std::cos(7.f * r.x), 0.004f * std::sin(5.f * r.z), 0.f);
@@ -317,10 +321,25 @@ TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpre
                  c.normal * (0.004f + 0.002f * std::sin(float(i)));
       raw.push_back(c);
     }
-  std::vector<VdCorrespondence> cons;
-  std::vector<vd_uint> cell_start;
   const VdLattice fl = vd_lattice_dense(f.vol);
-  SortByCell(raw, f.fine.compact, fl, m, &cons, &cell_start);
+  SortByCell(raw, f.fine.compact, fl, m, &p.cons, &p.cell_start);
+  return p;
+}
+
+// A coarse level's system gathered from the fine constraints in place (vd_level_moments, then the
+// x0 part of the right-hand side from the blocks) on the device against the CPU, and against the
+// system built the long way: every constraint re-expressed on the level (vd_level_constraint),
+// sorted by coarse cell, its moments taken and assembled. The two are the same sums.
+TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpressedConstraints) {
+  VD_REQUIRE_OCL(ctx);
+  const Fixture f = MakeSphere();
+  const size_t m = f.fine.list.size();
+  const FineProblem p = MakeFineProblem(f);
+  const std::vector<vd_float4>& x_f = p.x_f;
+  const std::vector<vd_float4>& rot_f = p.rot_f;
+  const std::vector<VdCorrespondence>& cons = p.cons;
+  const std::vector<vd_uint>& cell_start = p.cell_start;
+  const VdLattice fl = vd_lattice_dense(f.vol);
   DeviceActiveSet fine;
   fine.count = m;
   fine.list = ToDevice(ctx, f.fine.list);
@@ -411,6 +430,109 @@ TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpre
     EXPECT_LT(worst_rhs, 1e-4 * largest_rhs) << "s = " << s;
     EXPECT_LT(worst_inv, 1e-4) << "s = " << s;
   }
+}
+
+// A level's moments from the level below it (vd_level_moments_up): on the device against the CPU,
+// and against the same level's moments taken from the fine constraints (vd_level_moments), which
+// are the same sums; twice up (spacing 2 -> 4 -> 8) as a four-level hierarchy runs it.
+TEST(HierarchyParityTest, MomentsFromTheLevelBelowMatchTheFineConstraints) {
+  VD_REQUIRE_OCL(ctx);
+  const Fixture f = MakeSphere();
+  const FineProblem p = MakeFineProblem(f);
+  const VdLattice fl = vd_lattice_dense(f.vol);
+  const DeviceLattice dfl = DeviceLattice::Dense(f.vol);
+  std::vector<cpu::ActiveSet> levels;
+  std::vector<std::vector<float>> direct;
+  for (int s : {2, 4, 8}) {
+    const VdLattice cv = dfl.Level(s).lat;
+    levels.push_back(cpu::BuildLevel(fl, nullptr, f.fine.list, s, cv, dfl.Level(s).Entries(0)));
+    const int n = int(levels.back().list.size());
+    direct.emplace_back(size_t(VD_CELL_MOMENT_FLOATS) * n, -1.f);
+    cpu::LevelMoments(Dense(cv, levels.back()), s, Dense(fl, f.fine), p.cons.data(), p.cell_start.data(),
+                      p.x_f.data(), n, direct.back().data());
+  }
+  std::vector<float> below = direct[0];
+  for (int l = 1; l < 3; ++l) {
+    const int s = 2 << l;
+    const DeviceLattice dcl = dfl.Level(s), dbl = dfl.Level(s / 2);
+    const cpu::ActiveSet& up = levels[l];
+    const cpu::ActiveSet& low = levels[l - 1];
+    const int n = int(up.list.size());
+    ASSERT_GT(n, 20) << "s = " << s;
+    std::vector<float> got(size_t(VD_CELL_MOMENT_FLOATS) * n, -1.f);
+    cpu::LevelMomentsUp(Dense(dcl.lat, up), Dense(dbl.lat, low), below.data(), n, got.data());
+
+    DeviceActiveSet d_low, d_up;
+    d_low.count = low.list.size();
+    d_low.list = ToDevice(ctx, low.list);
+    d_low.compact = ToDevice(ctx, low.compact);
+    d_up.count = size_t(n);
+    d_up.list = ToDevice(ctx, up.list);
+    d_up.compact = ToDevice(ctx, up.compact);
+    auto d_below = ToDevice(ctx, below);
+    auto d_got = ctx->Alloc<float>(got.size());
+    ASSERT_TRUE(d_got.ok());
+    ASSERT_TRUE(ocl::LevelMomentsUp(*ctx, dbl, d_low, dcl, d_up, d_below, *d_got).ok());
+    EXPECT_TRUE(AllClose(FromDevice(ctx, *d_got, got.size()), got, 1e-6f, 1e-5f)) << "s = " << s;
+
+    // Against the fine constraints, relative to the largest value of each part (B^T B moments,
+    // right-hand sides); the counts exactly.
+    const std::vector<float>& want = direct[l];
+    double largest[2] = {0, 0}, worst[2] = {0, 0};
+    int cells = 0;
+    for (int k = 0; k < n; ++k) {
+      const float* a = got.data() + size_t(VD_CELL_MOMENT_FLOATS) * k;
+      const float* b = want.data() + size_t(VD_CELL_MOMENT_FLOATS) * k;
+      ASSERT_EQ(a[VD_CELL_COUNT_SLOT], b[VD_CELL_COUNT_SLOT]) << "s = " << s << ", point " << k;
+      cells += b[VD_CELL_COUNT_SLOT] > 0.f;
+      for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) {
+        const int part = i < VD_CELL_RHS_SLOT ? 0 : 1;
+        largest[part] = std::max(largest[part], double(std::abs(b[i])));
+        worst[part] = std::max(worst[part], double(std::abs(a[i] - b[i])));
+      }
+    }
+    std::printf("s = %d from s = %d: %d points, %d cells with constraints; worst moment %.3g of %.3g, rhs %.3g of %.3g\n",
+                s, s / 2, n, cells, worst[0], largest[0], worst[1], largest[1]);
+    EXPECT_GT(cells, 10);
+    EXPECT_GT(largest[1], 0.0);
+    EXPECT_LT(worst[0], 1e-5 * largest[0]) << "s = " << s;
+    EXPECT_LT(worst[1], 1e-5 * largest[1]) << "s = " << s;
+    below = got;
+  }
+}
+
+// A coarse level's increment reaches every point of a finer coarse level (the start of its solve,
+// HierarchicalSolver): a linear increment over the spacing-4 level, prolongated to the spacing-2
+// level, is that linear field at each of its points, including points on a face of the spacing-4
+// cell holding them whose far corners no fine point marked.
+TEST(HierarchyParityTest, ALinearIncrementProlongatesToEveryPointOfTheFinerLevel) {
+  const Fixture f = MakeSphere();
+  const VdLattice fl = vd_lattice_dense(f.vol), l1 = vd_lattice_level(fl, 2), l2 = vd_lattice_level(fl, 4);
+  const cpu::ActiveSet a1 = cpu::BuildLevel(fl, nullptr, f.fine.list, 2, l1, size_t(vd_lattice_brick_points(l1)));
+  const cpu::ActiveSet a2 = cpu::BuildLevel(fl, nullptr, f.fine.list, 4, l2, size_t(vd_lattice_brick_points(l2)));
+  auto increment = [](vd_float4 p) {
+    return VD_F4(0.01f + 0.2f * p.x - 0.1f * p.z, -0.02f + 0.15f * p.y, 0.005f + 0.1f * p.x + 0.05f * p.y, 0.f);
+  };
+  const int n2 = int(a2.list.size()), n1 = int(a1.list.size());
+  std::vector<vd_float4> x0_c(n2), x_c(n2);
+  for (int k = 0; k < n2; ++k) {
+    x0_c[k] = vd_active_rest(Dense(l2, a2), k);
+    x_c[k] = x0_c[k] + increment(x0_c[k]);
+  }
+  std::vector<vd_float4> u(n1, VD_F4(0.f, 0.f, 0.f, 0.f));
+  cpu::LevelProlongate(Dense(l1, a1), n1, 2, Dense(l2, a2), x_c.data(), x0_c.data(), u.data());
+  int on_face = 0;
+  for (int k = 0; k < n1; ++k) {
+    const vd_float4 p = vd_active_rest(Dense(l1, a1), k), want = increment(p);
+    ASSERT_NEAR(u[k].x, want.x, 1e-6f) << "point " << k;
+    ASSERT_NEAR(u[k].y, want.y, 1e-6f) << "point " << k;
+    ASSERT_NEAR(u[k].z, want.z, 1e-6f) << "point " << k;
+    int slot, x, y, z;
+    vd_lattice_point(l1, a1.list[k], &slot, &x, &y, &z);
+    on_face += (x % 2 == 0 && vd_lattice_compact(l2, nullptr, a2.compact.data(), 0, x / 2 + 1, y / 2, z / 2) < 0);
+  }
+  std::printf("%d points of spacing 2, %d on a face whose far corners are not in spacing 4\n", n1, on_face);
+  EXPECT_GT(on_face, 0) << "the sphere has points on such faces";
 }
 
 }  // namespace

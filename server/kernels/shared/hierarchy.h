@@ -132,7 +132,9 @@ VD_INLINE VdCorrespondence vd_level_constraint(VdCorrespondence c, int kf, VdAct
   return out;
 }
 
-/* Increment of fine active point k from the coarse solution (0 when a corner is missing). */
+/* Increment of fine active point k from the coarse solution (0 when a corner it weighs is
+ * missing). A corner of weight 0 may be missing: a point of a finer coarse level on the face of
+ * the coarse cell holding it (the fine points marked the cell on the face's other side). */
 VD_INLINE vd_float4 vd_level_prolongate(int k, VdActive fine, int s, VdActive coarse, VD_GLOBAL const vd_float4* x_c,
                                         VD_GLOBAL const vd_float4* x0_c) {
   int slot, x, y, z, gx, gy, gz;
@@ -148,10 +150,11 @@ VD_INLINE vd_float4 vd_level_prolongate(int k, VdActive fine, int s, VdActive co
   for (int o = 0; o < 8; ++o) {
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
     idx[o] = vd_lattice_compact(coarse.lat, coarse.nbr, coarse.compact, slot, cx + ox, cy + oy, cz + oz);
-    if (idx[o] < 0) return u;
     alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
+    if (idx[o] < 0 && alpha[o] != 0.0f) return u;
   }
-  for (int o = 0; o < 8; ++o) u = u + (x_c[idx[o]] - x0_c[idx[o]]) * alpha[o];
+  for (int o = 0; o < 8; ++o)
+    if (idx[o] >= 0) u = u + (x_c[idx[o]] - x0_c[idx[o]]) * alpha[o];
   u.w = 0.0f;
   return u;
 }
@@ -204,6 +207,105 @@ VD_INLINE void vd_level_moments(int K, VdActive coarse, int s, VdActive fine, VD
   VD_GLOBAL float* out = moments_c + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)K;
   for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) out[i] = acc[i];
   out[VD_CELL_COUNT_SLOT] = (float)count;
+}
+
+/* A level's moments from the level below it instead of from the fine constraints (the two are the
+ * same sums): a cell of level l + 1 is 8 cells of level l, and a constraint's weights there are
+ * polynomials of its weights in the child cell. Along one axis the child at offset c (0 or 1) has
+ * fraction f (g = 1 - f) and the parent F = (f + c) / 2 (G = 1 - F). At c = 0, from 1 = g + f:
+ * G^2 = g^2 + fg + f^2 / 4, FG = fg / 2 + f^2 / 4, F^2 = f^2 / 4 (the quadratic weights of the
+ * B^T B moments) and G = g + f / 2, F = f / 2 (the linear ones of the right-hand sides); c = 1
+ * swaps f with g and F with G. The right-hand sides are the residuals at the fine state of the
+ * lower level's moments (vd_level_moments), the same scalar per constraint on every level. */
+
+/* Coefficient of the child's quadratic weight a (g^2, fg, f^2) in the parent's A (G^2, FG, F^2). */
+VD_INLINE float vd_level_up2(int c, int A, int a) {
+  if (c) {
+    A = 2 - A;
+    a = 2 - a;
+  }
+  if (a < A) return 0.0f;
+  if (a == 2) return 0.25f;
+  return A == 0 ? 1.0f : 0.5f;
+}
+
+/* Coefficient of the child's linear weight a (g, f) in the parent's A (G, F). */
+VD_INLINE float vd_level_up1(int c, int A, int a) {
+  if (c) {
+    A = 1 - A;
+    a = 1 - a;
+  }
+  if (a < A) return 0.0f;
+  return (A == 0 && a == 0) ? 1.0f : 0.5f;
+}
+
+/* dst (27 x 6 moments) += the moments src changed along axis `axis` (0: x, 1: y, 2: z) for a child at
+ * offset c there. */
+VD_INLINE void vd_level_up_axis(float* dst, const float* src, int axis, int c) {
+  int stride = axis == 0 ? 1 : (axis == 1 ? 3 : 9);
+  VD_UNROLL
+  for (int m = 0; m < 27; ++m) {
+    int A = (m / stride) % 3, base = m - A * stride;
+    VD_UNROLL
+    for (int a = 0; a < 3; ++a) {
+      float t = vd_level_up2(c, A, a);
+      if (t == 0.0f) continue;
+      const float* v = src + 6 * (base + a * stride);
+      VD_UNROLL
+      for (int e = 0; e < 6; ++e) dst[6 * m + e] += t * v[e];
+    }
+  }
+}
+
+/* The moments (VD_CELL_MOMENT_FLOATS at moments_c + K * that) of the cell of level `parent` whose
+ * first corner is its active point K, from those of its 8 child cells on level `child` (spacing
+ * ratio 2) in moments_f. The passes go axis by axis (x per child, y per pair, z per half), so each
+ * child costs one axis pass rather than three. */
+VD_INLINE void vd_level_moments_up(int K, VdActive parent, VdActive child, VD_GLOBAL const float* moments_f,
+                                   VD_GLOBAL float* moments_c) {
+  int slot, X, Y, Z;
+  vd_lattice_point(parent.lat, parent.list[K], &slot, &X, &Y, &Z);
+  float out[VD_BTB_FLOATS], h[VD_BTB_FLOATS], g[VD_BTB_FLOATS], mom[VD_BTB_FLOATS];
+  float rhs[24];
+  for (int i = 0; i < VD_BTB_FLOATS; ++i) out[i] = 0.0f;
+  for (int i = 0; i < 24; ++i) rhs[i] = 0.0f;
+  float count = 0.0f;
+  for (int cz = 0; cz < 2; ++cz) {
+    for (int i = 0; i < VD_BTB_FLOATS; ++i) h[i] = 0.0f;
+    int any_z = 0;
+    for (int cy = 0; cy < 2; ++cy) {
+      for (int i = 0; i < VD_BTB_FLOATS; ++i) g[i] = 0.0f;
+      int any_y = 0;
+      for (int cx = 0; cx < 2; ++cx) {
+        int kc = vd_lattice_compact(child.lat, child.nbr, child.compact, slot, 2 * X + cx, 2 * Y + cy, 2 * Z + cz);
+        if (kc < 0) continue;
+        VD_GLOBAL const float* src = moments_f + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)kc;
+        float n = src[VD_CELL_COUNT_SLOT];
+        if (n == 0.0f) continue;
+        count += n;
+        any_y = 1;
+        for (int i = 0; i < VD_BTB_FLOATS; ++i) mom[i] = src[i];
+        vd_level_up_axis(g, mom, 0, cx);
+        VD_UNROLL
+        for (int O = 0; O < 8; ++O)
+          VD_UNROLL
+          for (int o = 0; o < 8; ++o) {
+            float t = vd_level_up1(cx, O & 1, o & 1) * vd_level_up1(cy, (O >> 1) & 1, (o >> 1) & 1) *
+                      vd_level_up1(cz, O >> 2, o >> 2);
+            if (t == 0.0f) continue;
+            for (int i = 0; i < 3; ++i) rhs[3 * O + i] += t * src[VD_CELL_RHS_SLOT + 3 * o + i];
+          }
+      }
+      if (!any_y) continue;
+      any_z = 1;
+      vd_level_up_axis(h, g, 1, cy);
+    }
+    if (any_z) vd_level_up_axis(out, h, 2, cz);
+  }
+  VD_GLOBAL float* dst = moments_c + (size_t)VD_CELL_MOMENT_FLOATS * (size_t)K;
+  for (int i = 0; i < VD_BTB_FLOATS; ++i) dst[i] = out[i];
+  for (int i = 0; i < 24; ++i) dst[VD_CELL_RHS_SLOT + i] = rhs[i];
+  dst[VD_CELL_COUNT_SLOT] = count;
 }
 
 /* Bricks for the coarse levels (the pool's bricks, docs/SPARSE_VOLUME.md "The solver on a lattice"):

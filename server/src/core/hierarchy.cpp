@@ -3,6 +3,7 @@
 #include <algorithm>
 
 #include "ocl/hierarchy_ocl.h"
+#include "ocl/solver_ocl.h"
 
 namespace vd {
 
@@ -48,13 +49,12 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const ocl::Buffer<vd_float4>& 
 
   const size_t nc = fine_.num_constraints();
   const bool coarse = !levels_.empty() && params.coarse_flip_flop_iterations > 0 && nc > 0;
-  if (coarse) {
-    // With B^T B cached, each coarse system's moments come straight from the fine constraints
-    // (shared/hierarchy.h); otherwise the constraints are re-expressed on the level and sorted.
-    const bool from_moments = params.cache_btb_coarse;
+  if (coarse && params.cache_btb_coarse) {
+    VD_RETURN_IF_ERROR(SolveCoarseFromMoments(fine, nc, &summary));
+  } else if (coarse) {
+    // Without the cache the constraints are re-expressed on each level and sorted. Coarsest first;
+    // each level restricts the current fine state, so it solves for what the coarser levels left.
     const int top = int(levels_.size()) - 1;
-    // Coarsest first; each level restricts the current fine state, so it solves for what the
-    // coarser levels left.
     for (int i = top; i >= 0; --i) {
       Level& L = *levels_[i];
       if (L.active.count == 0) continue;
@@ -62,28 +62,21 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const ocl::Buffer<vd_float4>& 
       VD_RETURN_IF_ERROR(ctx.Reserve(&L.rot0, std::max<size_t>(L.active.count, 1)));
       VD_RETURN_IF_ERROR(ocl::RestrictState(ctx, lattice_, fine, L.lattice, L.active, s, fine_.positions(),
                                             fine_.rotations(), L.x0, L.rot0));
-      if (from_moments) {
-        VD_RETURN_IF_ERROR(L.solver.SetupFromMoments(L.lattice, L.active, nc));
-        VD_RETURN_IF_ERROR(ocl::LevelMoments(ctx, lattice_, fine, L.lattice, L.active, s, fine_.constraints(),
-                                             fine_.cell_start(), fine_.positions(), L.solver.mutable_moments()));
-        VD_RETURN_IF_ERROR(L.solver.AssembleFromMoments(L.x0));
-      } else {
-        VD_RETURN_IF_ERROR(ctx.Reserve(&L.cons, std::max<size_t>(nc, 1)));
-        VD_RETURN_IF_ERROR(ocl::RestrictConstraints(ctx, lattice_, fine, L.lattice, L.active, s, nc,
-                                                    fine_.constraints(), fine_.constraint_cells(), fine_.positions(),
-                                                    L.x0, L.cons));
-        VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.lattice, L.active, L.cons, nc));
-      }
+      VD_RETURN_IF_ERROR(ctx.Reserve(&L.cons, std::max<size_t>(nc, 1)));
+      VD_RETURN_IF_ERROR(ocl::RestrictConstraints(ctx, lattice_, fine, L.lattice, L.active, s, nc, fine_.constraints(),
+                                                  fine_.constraint_cells(), fine_.positions(), L.x0, L.cons));
+      VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.lattice, L.active, L.cons, nc));
       // Rotations warm-started from the fine ones (the mean of the last frame's around each point)
       // and refined for the restricted state first, then the flip-flop.
       VD_RETURN_IF_ERROR(L.solver.InitState(L.x0, L.rot0));
       VD_RETURN_IF_ERROR(L.solver.RotationStep());
       VD_ASSIGN_OR_RETURN(SolverSummary ls, L.solver.Solve(params.coarse_flip_flop_iterations, false));
-
       summary.pcg_iterations += ls.pcg_iterations;
       VD_RETURN_IF_ERROR(ocl::ProlongateIncrement(ctx, lattice_, fine, L.lattice, L.active, s, L.solver.positions(),
                                                   L.x0, fine_.mutable_positions()));
     }
+  }
+  if (coarse) {
     // The fine rotations follow the prolongated positions before the fine flip-flop.
     VD_RETURN_IF_ERROR(fine_.RotationStep());
   }
@@ -96,6 +89,61 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const ocl::Buffer<vd_float4>& 
     VD_ASSIGN_OR_RETURN(summary.energy_final, fine_.Energy());
   }
   return summary;
+}
+
+Status HierarchicalSolver::SolveCoarseFromMoments(const DeviceActiveSet& fine, size_t nc, SolverSummary* summary) {
+  ocl::Context& ctx = ops_->ctx();
+  const int top = int(levels_.size()) - 1;
+  // Every level's moments at the fine state of the solve's start: the first level's from the fine
+  // constraints, each level above from the one below (the same sums, shared/hierarchy.h
+  // vd_level_moments_up, without walking the constraints again).
+  for (int i = 0; i <= top; ++i) {
+    Level& L = *levels_[i];
+    if (L.active.count == 0) continue;
+    const size_t n = std::max<size_t>(L.active.count, 1);
+    VD_RETURN_IF_ERROR(ctx.Reserve(&L.rot0, n));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&L.shift, n));
+    VD_RETURN_IF_ERROR(ctx.Fill(L.shift, VD_F4(0.f, 0.f, 0.f, 0.f), L.active.count));
+    VD_RETURN_IF_ERROR(L.solver.SetupFromMoments(L.lattice, L.active, nc));
+    if (i == 0) {
+      VD_RETURN_IF_ERROR(ocl::LevelMoments(ctx, lattice_, fine, L.lattice, L.active, L.spacing, fine_.constraints(),
+                                           fine_.cell_start(), fine_.positions(), L.solver.mutable_moments()));
+    } else {
+      const Level& B = *levels_[i - 1];
+      VD_RETURN_IF_ERROR(ocl::LevelMomentsUp(ctx, B.lattice, B.active, L.lattice, L.active, B.solver.moments(),
+                                             L.solver.mutable_moments()));
+    }
+  }
+  // Coarsest first; each level restricts the current fine state (x0), so it solves for what the
+  // coarser levels left. Its data term is w n . (p~ - p_cur + sum alpha (x - x0)) with p_cur under
+  // the current fine state, while its moments hold the residuals at the start's: a coarser level's
+  // increment u moved p_cur by sum alpha u exactly (a trilinear field is trilinear on every finer
+  // cell), so the system is the start's assembled at x0 - u (shift). Each solved level therefore
+  // subtracts its increment from the shift of every finer level.
+  for (int i = top; i >= 0; --i) {
+    Level& L = *levels_[i];
+    if (L.active.count == 0) continue;
+    VD_RETURN_IF_ERROR(ocl::RestrictState(ctx, lattice_, fine, L.lattice, L.active, L.spacing, fine_.positions(),
+                                          fine_.rotations(), L.x0, L.rot0));
+    VD_RETURN_IF_ERROR(ocl::Axpy(ctx, L.active.count, 1.f, L.x0, L.shift));
+    VD_RETURN_IF_ERROR(L.solver.AssembleFromMoments(L.shift));
+    // Rotations warm-started from the fine ones (the mean of the last frame's around each point)
+    // and refined for the restricted state first, then the flip-flop.
+    VD_RETURN_IF_ERROR(L.solver.InitState(L.x0, L.rot0));
+    VD_RETURN_IF_ERROR(L.solver.RotationStep());
+    VD_ASSIGN_OR_RETURN(SolverSummary ls, L.solver.Solve(params_.coarse_flip_flop_iterations, false));
+    summary->pcg_iterations += ls.pcg_iterations;
+    VD_RETURN_IF_ERROR(ocl::ProlongateIncrement(ctx, lattice_, fine, L.lattice, L.active, L.spacing,
+                                                L.solver.positions(), L.x0, fine_.mutable_positions()));
+    for (int j = i - 1; j >= 0; --j) {
+      Level& F = *levels_[j];
+      if (F.active.count == 0) continue;
+      // x0 - x: the increment, negated.
+      VD_RETURN_IF_ERROR(ocl::ProlongateIncrement(ctx, F.lattice, F.active, L.lattice, L.active,
+                                                  L.spacing / F.spacing, L.x0, L.solver.positions(), F.shift));
+    }
+  }
+  return Status::Ok();
 }
 
 }  // namespace vd

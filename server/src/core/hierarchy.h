@@ -57,12 +57,16 @@ class HierarchicalSolver {
     ocl::Buffer<uint8_t> member;
     ocl::Buffer<uint32_t> row_count, row_offset;
     // Restricted starting positions, warm-start rotations, and the constraints re-expressed on
-    // this level.
-    ocl::Buffer<vd_float4> x0, rot0;
+    // this level. With cached B^T B, shift is where its system (moments taken at the solve's
+    // start) is assembled: x0 less the coarser levels' increments at its points.
+    ocl::Buffer<vd_float4> x0, rot0, shift;
     ocl::Buffer<VdCorrespondence> cons;
     DeviceSolver solver;
   };
   Status BuildLevel(uint32_t slots, const DeviceActiveSet& fine, Level* level);
+  // The coarse levels with cached B^T B (params.cache_btb_coarse), coarsest first; nc fine
+  // constraints.
+  Status SolveCoarseFromMoments(const DeviceActiveSet& fine, size_t nc, SolverSummary* summary);
 
   DeviceOps* ops_;
   const SolverParams params_;

@@ -83,8 +83,9 @@ class DeviceSolver {
   Status SetupConstraints(const DeviceLattice& lattice, const DeviceActiveSet& active,
                           const ocl::Buffer<VdCorrespondence>& constraints, size_t n);
   // The other way for a coarse level with cached B^T B: no constraints of its own, its moments
-  // filled by the caller from the level below (mutable_moments(), shared/hierarchy.h
-  // vd_level_moments), then assembled with its start x0. num_constraints is reported only.
+  // filled by the caller from the fine constraints or the level below (mutable_moments(),
+  // shared/hierarchy.h vd_level_moments, vd_level_moments_up), then assembled with its x0.
+  // num_constraints is reported only.
   Status SetupFromMoments(const DeviceLattice& lattice, const DeviceActiveSet& active, size_t num_constraints);
   Status AssembleFromMoments(const ocl::Buffer<vd_float4>& x0);
   Status InitState(const ocl::Buffer<vd_float4>& x0);
@@ -116,6 +117,7 @@ class DeviceSolver {
   // Per-cell moments of the cached B^T B (VD_CELL_MOMENT_FLOATS per active point; filled by the
   // caller after SetupFromMoments) and the constraints' cell ranges (m + 1) as Setup left them.
   ocl::Buffer<float>& mutable_moments() { return moments_; }
+  const ocl::Buffer<float>& moments() const { return moments_; }
   const ocl::Buffer<uint32_t>& cell_start() const { return cell_start_; }
 
  private:

@@ -24,6 +24,11 @@ void LevelMoments(VdActive coarse, int s, VdActive fine, const VdCorrespondence*
   for (int k = 0; k < n; ++k) vd_level_moments(k, coarse, s, fine, cons, cell_start, x_f, moments_c);
 }
 
+void LevelMomentsUp(VdActive parent, VdActive child, const float* moments_f, int n, float* moments_c) {
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < n; ++k) vd_level_moments_up(k, parent, child, moments_f, moments_c);
+}
+
 void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, blocks, nbr, d);

@@ -39,6 +39,10 @@ void PcgStart(float spacing, const int* neighbours, const float* edge_w, const v
 void LevelMoments(VdActive coarse, int s, VdActive fine, const VdCorrespondence* cons, const vd_uint* cell_start,
                   const vd_float4* x_f, int n, float* moments_c);
 
+// The moments of level `parent` from those of the level below it (shared/hierarchy.h; kernel
+// vd_level_moments_up_kernel), n points of the parent.
+void LevelMomentsUp(VdActive parent, VdActive child, const float* moments_f, int n, float* moments_c);
+
 // Adaptive rigidity (vd_arap_edge_weights_kernel): 6 ARAP edge weights per point for m points.
 void ArapEdgeWeights(const int* neighbours, const vd_float4* x, const vd_float4* rot, const vd_float4* t_hat, int m,
                      float scale2, float floor_w, float* edge_w);

@@ -72,6 +72,11 @@ Status LevelMoments(Context& ctx, const DeviceLattice& fl, const DeviceActiveSet
   return kLevelMoments(ctx, coarse.count, VD_LEVELS_OF(fl, fine, cl, coarse), s, cons, cell_start, x_f, moments_c);
 }
 
+Status LevelMomentsUp(Context& ctx, const DeviceLattice& fl, const DeviceActiveSet& fine, const DeviceLattice& cl,
+                      const DeviceActiveSet& coarse, const Buffer<float>& moments_f, Buffer<float>& moments_c) {
+  return kLevelMomentsUp(ctx, coarse.count, VD_LEVELS_OF(fl, fine, cl, coarse), moments_f, moments_c);
+}
+
 Status ProlongateIncrement(Context& ctx, const DeviceLattice& fl, const DeviceActiveSet& fine, const DeviceLattice& cl,
                            const DeviceActiveSet& coarse, int s, const Buffer<vd_float4>& x_c,
                            const Buffer<vd_float4>& x0_c, Buffer<vd_float4>& x_f) {

@@ -46,6 +46,10 @@ inline constexpr Kernel<void(VD_LEVELS_PARAMS, int s, const Buffer<VdCorresponde
                              Buffer<float>& moments_c)>
     kLevelMoments{"vd_level_moments_kernel"};
 
+// One item per point of the upper level (coarse), from the level below it (fine, spacing ratio 2).
+inline constexpr Kernel<void(VD_LEVELS_PARAMS, const Buffer<float>& moments_f, Buffer<float>& moments_c)>
+    kLevelMomentsUp{"vd_level_moments_up_kernel"};
+
 // One item per fine active point on the bricks.
 inline constexpr Kernel<void(const Buffer<int32_t>& list_f, int s, const Buffer<int32_t>& lat_nbr,
                              Buffer<uint32_t>& keys, Buffer<int32_t>& slots, Buffer<uint32_t>& slot_keys,
@@ -77,6 +81,10 @@ Status RestrictConstraints(Context& ctx, const DeviceLattice& fl, const DeviceAc
 Status LevelMoments(Context& ctx, const DeviceLattice& fl, const DeviceActiveSet& fine, const DeviceLattice& cl,
                     const DeviceActiveSet& coarse, int s, const Buffer<VdCorrespondence>& cons,
                     const Buffer<uint32_t>& cell_start, const Buffer<vd_float4>& x_f, Buffer<float>& moments_c);
+// The moments of level cl from those of the level fl below it (cl = fl.Level(2)): the same sums as
+// LevelMoments from the constraints under the same fine state, without walking them again.
+Status LevelMomentsUp(Context& ctx, const DeviceLattice& fl, const DeviceActiveSet& fine, const DeviceLattice& cl,
+                      const DeviceActiveSet& coarse, const Buffer<float>& moments_f, Buffer<float>& moments_c);
 // Adds the coarse increment x_c - x0_c, interpolated, to the fine active points' x_f.
 Status ProlongateIncrement(Context& ctx, const DeviceLattice& fl, const DeviceActiveSet& fine, const DeviceLattice& cl,
                            const DeviceActiveSet& coarse, int s, const Buffer<vd_float4>& x_c,
