@@ -448,8 +448,8 @@ TEST(HierarchyParityTest, MomentsFromTheLevelBelowMatchTheFineConstraints) {
     levels.push_back(cpu::BuildLevel(fl, nullptr, f.fine.list, s, cv, dfl.Level(s).Entries(0)));
     const int n = int(levels.back().list.size());
     direct.emplace_back(size_t(VD_CELL_MOMENT_FLOATS) * n, -1.f);
-    cpu::LevelMoments(Dense(cv, levels.back()), s, Dense(fl, f.fine), p.cons.data(), p.cell_start.data(),
-                      p.x_f.data(), n, direct.back().data());
+    cpu::LevelMoments(Dense(cv, levels.back()), s, Dense(fl, f.fine), p.cons.data(), p.cell_start.data(), p.x_f.data(),
+                      n, direct.back().data());
   }
   std::vector<float> below = direct[0];
   for (int l = 1; l < 3; ++l) {
@@ -491,8 +491,9 @@ TEST(HierarchyParityTest, MomentsFromTheLevelBelowMatchTheFineConstraints) {
         worst[part] = std::max(worst[part], double(std::abs(a[i] - b[i])));
       }
     }
-    std::printf("s = %d from s = %d: %d points, %d cells with constraints; worst moment %.3g of %.3g, rhs %.3g of %.3g\n",
-                s, s / 2, n, cells, worst[0], largest[0], worst[1], largest[1]);
+    std::printf(
+        "s = %d from s = %d: %d points, %d cells with constraints; worst moment %.3g of %.3g, rhs %.3g of %.3g\n", s,
+        s / 2, n, cells, worst[0], largest[0], worst[1], largest[1]);
     EXPECT_GT(cells, 10);
     EXPECT_GT(largest[1], 0.0);
     EXPECT_LT(worst[0], 1e-5 * largest[0]) << "s = " << s;

@@ -287,14 +287,13 @@ VD_INLINE void vd_level_moments_up(int K, VdActive parent, VdActive child, VD_GL
         for (int i = 0; i < VD_BTB_FLOATS; ++i) mom[i] = src[i];
         vd_level_up_axis(g, mom, 0, cx);
         VD_UNROLL
-        for (int O = 0; O < 8; ++O)
-          VD_UNROLL
-          for (int o = 0; o < 8; ++o) {
-            float t = vd_level_up1(cx, O & 1, o & 1) * vd_level_up1(cy, (O >> 1) & 1, (o >> 1) & 1) *
-                      vd_level_up1(cz, O >> 2, o >> 2);
-            if (t == 0.0f) continue;
-            for (int i = 0; i < 3; ++i) rhs[3 * O + i] += t * src[VD_CELL_RHS_SLOT + 3 * o + i];
-          }
+        for (int O = 0; O < 8; ++O) VD_UNROLL
+        for (int o = 0; o < 8; ++o) {
+          float t = vd_level_up1(cx, O & 1, o & 1) * vd_level_up1(cy, (O >> 1) & 1, (o >> 1) & 1) *
+                    vd_level_up1(cz, O >> 2, o >> 2);
+          if (t == 0.0f) continue;
+          for (int i = 0; i < 3; ++i) rhs[3 * O + i] += t * src[VD_CELL_RHS_SLOT + 3 * o + i];
+        }
       }
       if (!any_y) continue;
       any_z = 1;

@@ -139,8 +139,8 @@ Status HierarchicalSolver::SolveCoarseFromMoments(const DeviceActiveSet& fine, s
       Level& F = *levels_[j];
       if (F.active.count == 0) continue;
       // x0 - x: the increment, negated.
-      VD_RETURN_IF_ERROR(ocl::ProlongateIncrement(ctx, F.lattice, F.active, L.lattice, L.active,
-                                                  L.spacing / F.spacing, L.x0, L.solver.positions(), F.shift));
+      VD_RETURN_IF_ERROR(ocl::ProlongateIncrement(ctx, F.lattice, F.active, L.lattice, L.active, L.spacing / F.spacing,
+                                                  L.x0, L.solver.positions(), F.shift));
     }
   }
   return Status::Ok();
