@@ -284,6 +284,7 @@ VD_INLINE void vd_level_moments_up(int K, VdActive parent, VdActive child, VD_GL
         if (n == 0.0f) continue;
         count += n;
         any_y = 1;
+        /* Into private memory, where vd_level_up_axis reads. */
         for (int i = 0; i < VD_BTB_FLOATS; ++i) mom[i] = src[i];
         vd_level_up_axis(g, mom, 0, cx);
         VD_UNROLL

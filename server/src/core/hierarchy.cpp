@@ -66,14 +66,7 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const ocl::Buffer<vd_float4>& 
       VD_RETURN_IF_ERROR(ocl::RestrictConstraints(ctx, lattice_, fine, L.lattice, L.active, s, nc, fine_.constraints(),
                                                   fine_.constraint_cells(), fine_.positions(), L.x0, L.cons));
       VD_RETURN_IF_ERROR(L.solver.SetupConstraints(L.lattice, L.active, L.cons, nc));
-      // Rotations warm-started from the fine ones (the mean of the last frame's around each point)
-      // and refined for the restricted state first, then the flip-flop.
-      VD_RETURN_IF_ERROR(L.solver.InitState(L.x0, L.rot0));
-      VD_RETURN_IF_ERROR(L.solver.RotationStep());
-      VD_ASSIGN_OR_RETURN(SolverSummary ls, L.solver.Solve(params.coarse_flip_flop_iterations, false));
-      summary.pcg_iterations += ls.pcg_iterations;
-      VD_RETURN_IF_ERROR(ocl::ProlongateIncrement(ctx, lattice_, fine, L.lattice, L.active, s, L.solver.positions(),
-                                                  L.x0, fine_.mutable_positions()));
+      VD_RETURN_IF_ERROR(SolveLevel(fine, L, &summary));
     }
   }
   if (coarse) {
@@ -89,6 +82,17 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const ocl::Buffer<vd_float4>& 
     VD_ASSIGN_OR_RETURN(summary.energy_final, fine_.Energy());
   }
   return summary;
+}
+
+Status HierarchicalSolver::SolveLevel(const DeviceActiveSet& fine, Level& L, SolverSummary* summary) {
+  // Rotations warm-started from the fine ones (the mean of the last frame's around each point)
+  // and refined for the restricted state first, then the flip-flop.
+  VD_RETURN_IF_ERROR(L.solver.InitState(L.x0, L.rot0));
+  VD_RETURN_IF_ERROR(L.solver.RotationStep());
+  VD_ASSIGN_OR_RETURN(SolverSummary ls, L.solver.Solve(params_.coarse_flip_flop_iterations, false));
+  summary->pcg_iterations += ls.pcg_iterations;
+  return ocl::ProlongateIncrement(ops_->ctx(), lattice_, fine, L.lattice, L.active, L.spacing, L.solver.positions(),
+                                  L.x0, fine_.mutable_positions());
 }
 
 Status HierarchicalSolver::SolveCoarseFromMoments(const DeviceActiveSet& fine, size_t nc, SolverSummary* summary) {
@@ -127,14 +131,7 @@ Status HierarchicalSolver::SolveCoarseFromMoments(const DeviceActiveSet& fine, s
                                           fine_.rotations(), L.x0, L.rot0));
     VD_RETURN_IF_ERROR(ocl::Axpy(ctx, L.active.count, 1.f, L.x0, L.shift));
     VD_RETURN_IF_ERROR(L.solver.AssembleFromMoments(L.shift));
-    // Rotations warm-started from the fine ones (the mean of the last frame's around each point)
-    // and refined for the restricted state first, then the flip-flop.
-    VD_RETURN_IF_ERROR(L.solver.InitState(L.x0, L.rot0));
-    VD_RETURN_IF_ERROR(L.solver.RotationStep());
-    VD_ASSIGN_OR_RETURN(SolverSummary ls, L.solver.Solve(params_.coarse_flip_flop_iterations, false));
-    summary->pcg_iterations += ls.pcg_iterations;
-    VD_RETURN_IF_ERROR(ocl::ProlongateIncrement(ctx, lattice_, fine, L.lattice, L.active, L.spacing,
-                                                L.solver.positions(), L.x0, fine_.mutable_positions()));
+    VD_RETURN_IF_ERROR(SolveLevel(fine, L, summary));
     for (int j = i - 1; j >= 0; --j) {
       Level& F = *levels_[j];
       if (F.active.count == 0) continue;

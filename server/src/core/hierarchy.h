@@ -67,6 +67,8 @@ class HierarchicalSolver {
   // The coarse levels with cached B^T B (params.cache_btb_coarse), coarsest first; nc fine
   // constraints.
   Status SolveCoarseFromMoments(const DeviceActiveSet& fine, size_t nc, SolverSummary* summary);
+  // Level L's system set up: its flip-flop from x0 and rot0, the increment added to the fine state.
+  Status SolveLevel(const DeviceActiveSet& fine, Level& L, SolverSummary* summary);
 
   DeviceOps* ops_;
   const SolverParams params_;
