@@ -32,6 +32,17 @@ __kernel void vd_extrapolate(__global const int* list, __global const float4* de
   rot_out[k] = r;
 }
 
+/* One item per member of M; only ring points (surface 0) write, and they read surface points only. */
+__kernel void vd_follow(__global const int* list, __global const uchar* surface, __global float4* def_pos,
+                        __global float4* def_rot, VdVolume vol, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int gi = list[get_global_id(0)];
+  float4 p, r;
+  if (!vd_follow_point(gi, surface, def_pos, def_rot, vol, &p, &r)) return;
+  def_pos[gi] = p;
+  def_rot[gi] = r;
+}
+
 __kernel void vd_extrapolate_commit(__global const int* list, __global const float4* pos_in,
                                     __global const float4* rot_in, __global float4* def_pos, __global float4* def_rot,
                                     int vd_items) {

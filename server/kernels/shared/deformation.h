@@ -63,6 +63,31 @@ VD_INLINE int vd_extrapolate_finish(vd_float4 disp, float n, int first, VD_GLOBA
   return 1;
 }
 
+/* The sum of the rigid predictions of grid point gi's optimised 26-neighbours j (w > 0), with
+ * surface != 0 only those that are surface points of M (solved this frame), into disp, their count
+ * n and the first one's index. */
+VD_INLINE void vd_extrapolate_gather(int gi, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const vd_float4* def_pos,
+                                     VD_GLOBAL const vd_float4* def_rot, VdVolume vol, vd_float4* disp, float* n,
+                                     int* first) {
+  int x = gi % vol.dim_x, yz = gi / vol.dim_x;
+  int y = yz % vol.dim_y, z = yz / vol.dim_y;
+  *disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  *n = 0.0f;
+  *first = -1;
+  for (int k = 0; k < 27; ++k) {
+    int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
+    int nx = x + dx, ny = y + dy, nz = z + dz;
+    if (k == 13 || nx < 0 || ny < 0 || nz < 0 || nx >= vol.dim_x || ny >= vol.dim_y || nz >= vol.dim_z) continue;
+    int j = nx + vol.dim_x * (ny + vol.dim_y * nz);
+    if (surface != 0 && !surface[j]) continue;
+    vd_float4 t = def_pos[j];
+    if (!(t.w > 0.0f)) continue;
+    *disp = *disp + vd_extrapolate_prediction(t, def_rot[j], dx, dy, dz, vol.voxel_size);
+    *n += 1.0f;
+    if (*first < 0) *first = j;
+  }
+}
+
 /* A grid point entering the active set for the first time (never optimised: w == 0) starts where
  * its optimised 26-neighbours j put it as rigid pieces, the mean of t_j + R_j (t^_i - t^_j) (the
  * ARAP prior's own prediction), with the rotation of the first such neighbour. Moving it by their
@@ -72,26 +97,37 @@ VD_INLINE int vd_extrapolate_finish(vd_float4 disp, float n, int first, VD_GLOBA
  * neighbours it keeps its state. Returns 1 when the point was initialised. */
 VD_INLINE int vd_extrapolate_point(int gi, VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
                                    VdVolume vol, vd_float4* pos_out, vd_float4* rot_out) {
-  int x = gi % vol.dim_x, yz = gi / vol.dim_x;
-  int y = yz % vol.dim_y, z = yz / vol.dim_y;
   *pos_out = def_pos[gi];
   *rot_out = def_rot[gi];
   if (def_pos[gi].w > 0.0f) return 0;
-  vd_float4 disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  float n = 0.0f;
-  int first = -1;
-  for (int k = 0; k < 27; ++k) {
-    int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
-    int nx = x + dx, ny = y + dy, nz = z + dz;
-    if (k == 13 || nx < 0 || ny < 0 || nz < 0 || nx >= vol.dim_x || ny >= vol.dim_y || nz >= vol.dim_z) continue;
-    int j = nx + vol.dim_x * (ny + vol.dim_y * nz);
-    vd_float4 t = def_pos[j];
-    if (!(t.w > 0.0f)) continue;
-    disp = disp + vd_extrapolate_prediction(t, def_rot[j], dx, dy, dz, vol.voxel_size);
-    n += 1.0f;
-    if (first < 0) first = j;
-  }
+  vd_float4 disp;
+  float n;
+  int first;
+  vd_extrapolate_gather(gi, 0, def_pos, def_rot, vol, &disp, &n, &first);
   return vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out);
+}
+
+/* A ring point of M (a 6-neighbour of the surface that is no corner of a surface cell) is no
+ * unknown of the solve: no data term reaches it, and its ARAP edges only carry its solved
+ * neighbours' motion on. After each solve it follows them instead, to the mean of their rigid
+ * predictions t_j + R_j (t^_i - t^_j) with the first one's rotation, the ARAP prior's own answer
+ * for a point without data, and counts the solve (w + 1), so fusion's K_min wait runs as for a
+ * solved point. surface: 1 at the surface points (the solved ones). Returns 1 when it moved (a
+ * surface point, or a ring point without a solved neighbour, keeps its state). */
+VD_INLINE int vd_follow_point(int gi, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const vd_float4* def_pos,
+                              VD_GLOBAL const vd_float4* def_rot, VdVolume vol, vd_float4* pos_out,
+                              vd_float4* rot_out) {
+  *pos_out = def_pos[gi];
+  *rot_out = def_rot[gi];
+  if (surface[gi]) return 0;
+  vd_float4 disp;
+  float n;
+  int first;
+  vd_extrapolate_gather(gi, surface, def_pos, def_rot, vol, &disp, &n, &first);
+  float w = def_pos[gi].w;
+  if (!vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out)) return 0;
+  pos_out->w = w + 1.0f;
+  return 1;
 }
 
 /* Moves a rigid motion out of the field: grid point i (optimised: w > 0) takes t_i' = A t_i and

@@ -901,9 +901,9 @@ Status Engine::NonRigid(FrameResult* result) {
     VD_RETURN_IF_ERROR(
         solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, active_));
   } else {
-    VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_));
+    VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_, &solved_));
     VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
-    VD_RETURN_IF_ERROR(solver_->Prepare(volume_, active_));
+    VD_RETURN_IF_ERROR(solver_->Prepare(volume_, solved_));
   }
   const size_t pixels = static_cast<size_t>(cam_.width) * cam_.height;
   // E_sparse: each match as three axis rows after the per-pixel constraints (weight w_s / w_d).
@@ -936,6 +936,7 @@ Status Engine::NonRigid(FrameResult* result) {
     } else {
       VD_ASSIGN_OR_RETURN(summary, solver_->Solve(volume_, corr_, total, energies));
       VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
+      VD_RETURN_IF_ERROR(ops_.Follow(volume_, active_));
     }
     if (energies) {
       if (!result->energies_evaluated) result->energy_initial = summary.energy_initial;

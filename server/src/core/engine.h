@@ -389,6 +389,8 @@ class Engine {
   // Non-rigid state: the active set, the deformed mesh rendered at the current pose, the
   // per-pixel correspondences and the solver's buffers.
   DeviceActiveSet active_;
+  // M's surface points alone, the solver's unknowns: the ring follows them (DeviceOps::Follow).
+  DeviceActiveSet solved_;
   // FactorRigidMotion's gathered active state and its host copies.
   ocl::Buffer<vd_float4> factor_pos_, factor_rot_;
   std::vector<vd_float4> factor_host_;

@@ -7,17 +7,30 @@
 
 namespace vd {
 
-Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
+Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out, DeviceActiveSet* solved) {
   const size_t n = v.num_voxels(), rows = v.num_rows();
   if (mc_codes_.size() < n) return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on this grid");
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_surface_, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_member_, n));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_count_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_offset_, rows + 1));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_surface_, rows));
+  VD_RETURN_IF_ERROR(ocl::kActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, mc_chunk_tris_, v.vol,
+                                         active_surface_, active_row_surface_));
+  VD_RETURN_IF_ERROR(
+      ocl::kActiveDilate(*ctx_, rows, active_surface_, active_row_surface_, v.vol, active_member_, active_row_count_));
+  VD_RETURN_IF_ERROR(CompactActiveSet(v.vol, active_member_, active_row_count_, out));
+  if (solved) VD_RETURN_IF_ERROR(CompactActiveSet(v.vol, active_surface_, active_row_surface_, solved));
+  return Status::Ok();
+}
+
+Status DeviceOps::CompactActiveSet(const VdVolume& vol, const ocl::Buffer<uint8_t>& member,
+                                   const ocl::Buffer<uint32_t>& row_count, DeviceActiveSet* out) {
+  const size_t n = size_t(vol.dim_x) * vol.dim_y * vol.dim_z, rows = size_t(vol.dim_y) * vol.dim_z;
   // The map of the last build on these dims is -1 but at its members: clear those (before the list
   // is reserved again, which may drop it). Otherwise start from a map of -1.
-  const bool kept = out->kept.dim_x == v.vol.dim_x && out->kept.dim_y == v.vol.dim_y &&
-                    out->kept.dim_z == v.vol.dim_z && out->compact.size() >= n;
+  const bool kept = out->kept.dim_x == vol.dim_x && out->kept.dim_y == vol.dim_y && out->kept.dim_z == vol.dim_z &&
+                    out->compact.size() >= n;
   out->kept = VdVolume{};
   if (kept) {
     VD_RETURN_IF_ERROR(ocl::kActiveUnmark(*ctx_, out->count, out->list, out->compact));
@@ -25,22 +38,16 @@ Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out) {
     VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
     VD_RETURN_IF_ERROR(ctx_->Fill(out->compact, int32_t{-1}, n));
   }
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_surface_, rows));
-  VD_RETURN_IF_ERROR(ocl::kActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, mc_chunk_tris_, v.vol,
-                                         active_surface_, active_row_surface_));
-  VD_RETURN_IF_ERROR(
-      ocl::kActiveDilate(*ctx_, rows, active_surface_, active_row_surface_, v.vol, active_member_, active_row_count_));
-  VD_RETURN_IF_ERROR(SizeActiveSet(rows, out));
-  VD_RETURN_IF_ERROR(
-      ocl::kActiveCompact(*ctx_, rows, active_member_, active_row_offset_, v.vol, 1, out->list, out->compact));
-  VD_RETURN_IF_ERROR(ocl::kActiveNeighbours(*ctx_, out->count, out->list, out->compact, v.vol, out->neighbours));
-  out->kept = v.vol;
+  VD_RETURN_IF_ERROR(SizeActiveSet(rows, row_count, out));
+  VD_RETURN_IF_ERROR(ocl::kActiveCompact(*ctx_, rows, member, active_row_offset_, vol, 1, out->list, out->compact));
+  VD_RETURN_IF_ERROR(ocl::kActiveNeighbours(*ctx_, out->count, out->list, out->compact, vol, out->neighbours));
+  out->kept = vol;
   return Status::Ok();
 }
 
-Status DeviceOps::SizeActiveSet(size_t rows, DeviceActiveSet* out) {
+Status DeviceOps::SizeActiveSet(size_t rows, const ocl::Buffer<uint32_t>& row_count, DeviceActiveSet* out) {
   uint32_t total = 0;
-  VD_RETURN_IF_ERROR(ScanExclusive(active_row_count_, rows, active_row_offset_, &total));
+  VD_RETURN_IF_ERROR(ScanExclusive(row_count, rows, active_row_offset_, &total));
   out->count = total;
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->list, std::max<size_t>(total, 1)));
   return ctx_->Reserve(&out->neighbours, 6 * std::max<size_t>(total, 1));

@@ -189,8 +189,12 @@ class DeviceOps {
   Status IntegrateActive(ocl::BrickPool& pool, const DeviceActiveSet& active, const VdFusionParams& fp, VdVolume vol,
                          VdCamera cam, VdPose world_to_cam, const ocl::Buffer<float>& depth,
                          const ocl::Buffer<uint32_t>& rgba);
-  // M from the cell codes of the last MarchingCubes() call on v.
-  Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out);
+  // After a solve over the surface points of M (`solved` of the last BuildActiveSet), its ring points
+  // follow their solved neighbours (shared/deformation.h vd_follow_point).
+  Status Follow(DeviceVolume& v, const DeviceActiveSet& active);
+  // M from the cell codes of the last MarchingCubes() call on v; with `solved`, also the set of its
+  // surface points alone (the corners of cells with triangles: the solver's unknowns).
+  Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out, DeviceActiveSet* solved = nullptr);
   // M over a sparse volume from the last MarchingCubes() call on its bricks: list and compact hold
   // pool voxel indices (slot * 512 + local) for grid indices.
   Status BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out);
@@ -210,7 +214,11 @@ class DeviceOps {
   StatusOr<bool> SizeMesh(size_t rows, DeviceMesh* mesh);
   // Both active-set builds: scans the per-row member counts into active_row_offset_, sets
   // out->count and reserves the list and the neighbour table for it.
-  Status SizeActiveSet(size_t rows, DeviceActiveSet* out);
+  Status SizeActiveSet(size_t rows, const ocl::Buffer<uint32_t>& row_count, DeviceActiveSet* out);
+  // The dense build's compaction of `member` (per-row counts row_count) into out: list, map and
+  // neighbours; a map kept from the last build on these dims is cleared at its old members only.
+  Status CompactActiveSet(const VdVolume& vol, const ocl::Buffer<uint8_t>& member,
+                          const ocl::Buffer<uint32_t>& row_count, DeviceActiveSet* out);
   ocl::Context* ctx_;
   ocl::Buffer<int8_t> mc_tri_table_;
   // What IntegrateActive on the bricks passes for the touched flags it does not keep (never read).

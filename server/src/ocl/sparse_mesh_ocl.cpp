@@ -54,7 +54,7 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   VD_RETURN_IF_ERROR(ocl::kSparseActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, nbr, active_surface_));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveDilate(*ctx_, rows, active_surface_, nbr, active_member_));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveRows(*ctx_, rows, active_member_, active_row_count_));
-  VD_RETURN_IF_ERROR(SizeActiveSet(rows, out));
+  VD_RETURN_IF_ERROR(SizeActiveSet(rows, active_row_count_, out));
   VD_RETURN_IF_ERROR(
       ocl::kSparseActiveCompact(*ctx_, rows, active_member_, active_row_offset_, out->list, out->compact));
   return ocl::kSparseActiveNeighbours(*ctx_, out->count, out->list, out->compact, nbr, out->neighbours);
