@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/device_ops.h"
@@ -27,7 +28,8 @@ TEST(ActiveSetParityTest, SurfaceCellsPlusOneRingMatchCpu) {
   // An unobserved slab: no surface there, so no active points either.
   for (size_t i = size_t(vol.dim_x) * vol.dim_y * 23; i < n; ++i) weight[i] = 0.f;
   const cpu::McMesh mesh = cpu::MarchingCubes(tsdf.data(), weight.data(), color.data(), vol);
-  const cpu::ActiveSet ref = cpu::BuildActiveSet(mesh.codes.data(), vol);
+  cpu::ActiveSet ref_solved;
+  const cpu::ActiveSet ref = cpu::BuildActiveSet(mesh.codes.data(), vol, &ref_solved);
   ASSERT_GT(ref.list.size(), 1000u);
 
   DeviceVolume dv;
@@ -37,13 +39,21 @@ TEST(ActiveSetParityTest, SurfaceCellsPlusOneRingMatchCpu) {
   ASSERT_TRUE(ops.MarkTouched(dv).ok());
   DeviceMesh dm;
   ASSERT_TRUE(ops.MarchingCubes(dv, &dm).ok());
-  DeviceActiveSet das;
-  Status s = ops.BuildActiveSet(dv, &das);
+  DeviceActiveSet das, solved;
+  Status s = ops.BuildActiveSet(dv, &das, &solved);
   ASSERT_TRUE(s.ok()) << s.ToString();
   ASSERT_EQ(das.count, ref.list.size());
   EXPECT_EQ(test::FromDevice(ctx, das.list, das.count), ref.list);
   EXPECT_EQ(test::FromDevice(ctx, das.compact, n), ref.compact);
   EXPECT_EQ(test::FromDevice(ctx, das.neighbours, 6 * das.count), ref.neighbours);
+  // The solver's set, the surface points alone: device against CPU, and exactly the corners of the
+  // cells with triangles (checked below); on this sphere the ring is a third of M or more.
+  ASSERT_EQ(solved.count, ref_solved.list.size());
+  EXPECT_EQ(test::FromDevice(ctx, solved.list, solved.count), ref_solved.list);
+  EXPECT_EQ(test::FromDevice(ctx, solved.compact, n), ref_solved.compact);
+  EXPECT_EQ(test::FromDevice(ctx, solved.neighbours, 6 * solved.count), ref_solved.neighbours);
+  std::printf("M %zu points, of them %zu surface points (the solver's)\n", ref.list.size(), ref_solved.list.size());
+  EXPECT_LT(double(ref_solved.list.size()), 0.67 * double(ref.list.size()));
 
   // A second build into the same set on the same dims (the engine's every frame) writes only the old
   // and the new members of the map: a smaller sphere elsewhere gives the CPU's set and a map that
@@ -64,16 +74,20 @@ TEST(ActiveSetParityTest, SurfaceCellsPlusOneRingMatchCpu) {
   EXPECT_EQ(test::FromDevice(ctx, das.compact, n), other_ref.compact);
   EXPECT_EQ(test::FromDevice(ctx, das.neighbours, 6 * das.count), other_ref.neighbours);
 
-  // Every corner of every triangle-emitting cell is a member.
+  // Every corner of every triangle-emitting cell is a member, and a surface point; the surface
+  // points are those corners and nothing else.
   const McTable& table = GetMcTable();
+  std::vector<uint8_t> corner(n, 0);
   for (size_t i = 0; i < n; ++i) {
     if (!(mesh.codes[i] & 0x100) || table.counts[mesh.codes[i] & 255] == 0) continue;
     const int x = int(i % vol.dim_x), y = int(i / vol.dim_x % vol.dim_y), z = int(i / vol.dim_x / vol.dim_y);
     for (int k = 0; k < 8; ++k) {
       const size_t c = (x + (k & 1)) + size_t(vol.dim_x) * ((y + ((k >> 1) & 1)) + size_t(vol.dim_y) * (z + ((k >> 2) & 1)));
       ASSERT_GE(ref.compact[c], 0);
+      corner[c] = 1;
     }
   }
+  for (size_t i = 0; i < n; ++i) ASSERT_EQ(ref_solved.compact[i] >= 0, corner[i] == 1) << "grid point " << i;
   // Neighbourhoods are symmetric, and nothing lies in the unobserved slab.
   for (size_t k = 0; k < ref.list.size(); ++k) {
     EXPECT_LE(ref.list[k] / (vol.dim_x * vol.dim_y), 23);

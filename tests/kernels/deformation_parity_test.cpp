@@ -150,6 +150,76 @@ TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesC
   EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 0.f, 0.f));
 }
 
+// After a solve over M's surface points, the ring follows them: under a rigid motion of the solved
+// points every ring point lands on that motion and counts the solve; the solved points are not
+// touched; device against CPU on a sphere's real active set.
+TEST(DeformationParityTest, RingPointsFollowTheSolvedSurfaceAndMatchCpu) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  test::AnalyticVolume sphere =
+      test::MakeSphereVolume(test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f,
+                             0.08f);
+  const VdVolume& vol = sphere.vol;
+  const size_t n = sphere.tsdf.size();
+  const cpu::McMesh mesh = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), vol);
+  cpu::ActiveSet solved;
+  const cpu::ActiveSet m = cpu::BuildActiveSet(mesh.codes.data(), vol, &solved);
+  ASSERT_GT(m.list.size(), solved.list.size() + 500);
+  std::vector<uint8_t> surface(n, 0);
+  for (int i : solved.list) surface[i] = 1;
+
+  const Eigen::AngleAxisf turn(60.f * float(M_PI) / 180.f, Eigen::Vector3f(0.5f, -1.f, 0.3f).normalized());
+  const Eigen::Quaternionf q(turn);
+  const Eigen::Vector3f shift(0.01f, 0.03f, -0.02f);
+  std::vector<vd_float4> pos(n), rot(n);
+  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  std::vector<Eigen::Vector3f> want(n);
+  for (int i : m.list) {
+    want[i] = turn * Eigen::Vector3f(pos[i].x, pos[i].y, pos[i].z) + shift;
+    if (surface[i]) {  // solved: on the motion, 5 solves
+      pos[i] = VD_F4(want[i].x(), want[i].y(), want[i].z(), 5.f);
+      rot[i] = VD_F4(q.x(), q.y(), q.z(), q.w());
+    } else {  // ring: stale (at rest), 2 solves
+      pos[i].w = 2.f;
+    }
+  }
+  std::vector<vd_float4> pos_ref = pos, rot_ref = rot;
+  cpu::Follow(m.list.data(), int(m.list.size()), surface.data(), pos_ref.data(), rot_ref.data(), vol);
+  double worst = 0;
+  for (int i : m.list) {
+    const Eigen::Vector3f got(pos_ref[i].x, pos_ref[i].y, pos_ref[i].z);
+    if (surface[i]) {
+      ASSERT_EQ(pos_ref[i].x, pos[i].x);
+      ASSERT_EQ(pos_ref[i].w, 5.f);
+      continue;
+    }
+    worst = std::max(worst, double((got - want[i]).norm()));
+    EXPECT_EQ(pos_ref[i].w, 3.f);
+    EXPECT_NEAR(std::abs(rot_ref[i].w), std::abs(q.w()), 1e-6f);
+  }
+  std::printf("worst ring point %.3g m from the rigid motion (voxel %.3g m)\n", worst, vol.voxel_size);
+  EXPECT_LT(worst, 1e-5);
+
+  // The device: the same M and surface from its own build, then Follow.
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
+  ASSERT_TRUE(ctx->Upload(dv.tsdf, sphere.tsdf.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.weight, sphere.weight.data(), n).ok());
+  ASSERT_TRUE(ops.MarkTouched(dv).ok());
+  DeviceMesh dm;
+  ASSERT_TRUE(ops.MarchingCubes(dv, &dm).ok());
+  DeviceActiveSet active, solved_dev;
+  ASSERT_TRUE(ops.BuildActiveSet(dv, &active, &solved_dev).ok());
+  ASSERT_EQ(active.count, m.list.size());
+  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_rot, rot.data(), n).ok());
+  ASSERT_TRUE(ops.Follow(dv, active).ok());
+  EXPECT_TRUE(
+      test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
+  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 0.f, 0.f));
+}
+
 // Moving a rigid motion out of the field: every optimised point takes t' = A t and R' = q_A R,
 // points never optimised keep their rest state; device against CPU.
 TEST(DeformationParityTest, FieldRigidMovesOptimisedPointsAndMatchesCpu) {

@@ -143,7 +143,38 @@ McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* col
   return mesh;
 }
 
-ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol) {
+void Follow(const int* list, int n, const uint8_t* surface, vd_float4* def_pos, vd_float4* def_rot, VdVolume vol) {
+  std::vector<vd_float4> pos(n), rot(n);
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < n; ++k) vd_follow_point(list[k], surface, def_pos, def_rot, vol, &pos[k], &rot[k]);
+  for (int k = 0; k < n; ++k) {
+    def_pos[list[k]] = pos[k];
+    def_rot[list[k]] = rot[k];
+  }
+}
+
+namespace {
+
+// Sequential compaction of the flagged points of a dense grid: list, map and 6-neighbours.
+ActiveSet CompactMembers(const std::vector<uint8_t>& member, VdVolume vol) {
+  ActiveSet out;
+  out.compact.assign(member.size(), -1);
+  for (size_t i = 0; i < member.size(); ++i) {
+    if (!member[i]) continue;
+    out.compact[i] = int32_t(out.list.size());
+    out.list.push_back(int32_t(i));
+  }
+  out.neighbours.resize(6 * out.list.size());
+  for (size_t k = 0; k < out.list.size(); ++k) {
+    const int i = out.list[k], x = i % vol.dim_x, yz = i / vol.dim_x;
+    vd_active_neighbours_of(out.compact.data(), vol, x, yz % vol.dim_y, yz / vol.dim_y, &out.neighbours[6 * k]);
+  }
+  return out;
+}
+
+}  // namespace
+
+ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol, ActiveSet* solved) {
   const McTable& table = GetMcTable();
   const int n = vol.dim_x * vol.dim_y * vol.dim_z;
   std::vector<uint8_t> surface(n), member(n);
@@ -157,19 +188,8 @@ ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol) {
     const int x = i % vol.dim_x, yz = i / vol.dim_x;
     member[i] = vd_active_dilate_point(surface.data(), vol, x, yz % vol.dim_y, yz / vol.dim_y);
   }
-  ActiveSet out;
-  out.compact.assign(n, -1);
-  for (int i = 0; i < n; ++i) {
-    if (!member[i]) continue;
-    out.compact[i] = int32_t(out.list.size());
-    out.list.push_back(i);
-  }
-  out.neighbours.resize(6 * out.list.size());
-  for (size_t k = 0; k < out.list.size(); ++k) {
-    const int i = out.list[k], x = i % vol.dim_x, yz = i / vol.dim_x;
-    vd_active_neighbours_of(out.compact.data(), vol, x, yz % vol.dim_y, yz / vol.dim_y, &out.neighbours[6 * k]);
-  }
-  return out;
+  if (solved) *solved = CompactMembers(surface, vol);
+  return CompactMembers(member, vol);
 }
 
 ActiveSet BuildLevel(VdLattice fine, const int32_t* nbr, const std::vector<int32_t>& fine_list, int s, VdLattice coarse,

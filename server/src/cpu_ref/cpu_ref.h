@@ -45,6 +45,8 @@ void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, 
 // vd_extrapolate + vd_extrapolate_commit: the n listed grid points never optimised start from their
 // optimised neighbours (all computed from the field as given, then written).
 void Extrapolate(const int* list, int n, vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
+// The ring points of M (list, surface 0) follow their solved neighbours (vd_follow_point).
+void Follow(const int* list, int n, const uint8_t* surface, vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
 
 struct McMesh {
   // Vertex positions in grid units (x + t, y, z): cell and trilinear weights are implicit.
@@ -63,7 +65,8 @@ struct ActiveSet {
   std::vector<int32_t> neighbours;
 };
 // Independent of the device's scan: a sequential compaction over the same per-point tests.
-ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol);
+// solved: also the set of the surface points alone (the solver's unknowns).
+ActiveSet BuildActiveSet(const uint16_t* codes, VdVolume vol, ActiveSet* solved = nullptr);
 
 // A coarse level of the solver's hierarchy (shared/hierarchy.h) at spacing s, from the fine
 // active list on lattice `fine` (nbr: the bricks' neighbour slots, null on a dense grid):
