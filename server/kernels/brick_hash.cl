@@ -202,6 +202,18 @@ __kernel void vd_sparse_extrapolate(__global const int* list, __global const int
   rot_out[k] = r;
 }
 
+/* One item per member of M (pool voxel indices); only ring points write, reading surface points. */
+__kernel void vd_sparse_follow(__global const int* list, __global const uchar* surface, __global const int* nbr,
+                               __global float4* def_pos, __global float4* def_rot, float voxel_size, int vd_items) {
+  int k = get_global_id(0);
+  if (k >= vd_items) return;
+  int v = list[k];
+  float4 p, r;
+  if (!vd_sparse_follow_point(v, surface, nbr, def_pos, def_rot, voxel_size, &p, &r)) return;
+  def_pos[v] = p;
+  def_rot[v] = r;
+}
+
 /* Growth: one work item per voxel of the listed slots, each slot with its planned motion. */
 __kernel void vd_sparse_grow(__global const int* grow_slots, __global const VdPose* motion,
                              __global const uint* slot_keys, __global float* tsdf, __global float* weight,

@@ -189,8 +189,8 @@ TEST_F(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
   ocl::Context* ctx = ctx_;
   DeviceOps& ops = *ops_;
   test::FusedBricks& f = f_;
-  DeviceActiveSet active;
-  ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active).ok());
+  DeviceActiveSet active, solved;
+  ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active, &solved).ok());
   const size_t m = active.count, n = size_t(f.counts.used) * VD_BRICK_VOXELS;
   ASSERT_GT(m, 10000u);
   const std::vector<int32_t> list = test::FromDevice(ctx, active.list, m),
@@ -199,10 +199,18 @@ TEST_F(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
 
   const cpu::BrickTable& ref = ref_;
   const cpu::McMesh cm = CpuMesh();
-  const cpu::ActiveSet ca = cpu::SparseActiveSet(ref, f.counts.used, cm.codes.data());
+  cpu::ActiveSet cs;
+  const cpu::ActiveSet ca = cpu::SparseActiveSet(ref, f.counts.used, cm.codes.data(), &cs);
   EXPECT_EQ(list, ca.list);
   EXPECT_EQ(compact, ca.compact);
   EXPECT_EQ(nb, ca.neighbours);
+  // The solver's set (the surface points alone), and each of its members is one of M's.
+  ASSERT_EQ(solved.count, cs.list.size());
+  ASSERT_LT(solved.count, m * 2 / 3);
+  EXPECT_EQ(test::FromDevice(ctx, solved.list, solved.count), cs.list);
+  EXPECT_EQ(test::FromDevice(ctx, solved.compact, n), cs.compact);
+  EXPECT_EQ(test::FromDevice(ctx, solved.neighbours, 6 * solved.count), cs.neighbours);
+  for (int32_t v : cs.list) ASSERT_GE(ca.compact[v], 0);
 
   // Against the dense grid's: each member's global grid coordinates.
   auto global = [&](int32_t v) {
@@ -217,7 +225,19 @@ TEST_F(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
   int lo[3];
   const VdVolume dense = f.DenseOver(ref, 2, &dt, &dw, &dc, lo);
   const cpu::McMesh dm = cpu::MarchingCubes(dt.data(), dw.data(), dc.data(), dense);
-  const cpu::ActiveSet da = cpu::BuildActiveSet(dm.codes.data(), dense);
+  cpu::ActiveSet ds;
+  const cpu::ActiveSet da = cpu::BuildActiveSet(dm.codes.data(), dense, &ds);
+  // The surface points are the dense grid's but for its one extra silhouette cell's corners.
+  std::set<std::array<int, 3>> dense_surface;
+  for (int32_t i : ds.list) {
+    int x, y, z;
+    vd_grid_coords(i, dense, &x, &y, &z);
+    dense_surface.insert({lo[0] + x, lo[1] + y, lo[2] + z});
+  }
+  size_t surface_not_dense = 0;
+  for (int32_t v : cs.list) surface_not_dense += dense_surface.erase(global(v)) == 0;
+  EXPECT_EQ(surface_not_dense, 0u);
+  EXPECT_LE(dense_surface.size(), 8u);
   std::set<std::array<int, 3>> brick_keys_set;
   size_t only_dense = 0, unallocated = 0;
   for (int32_t i : da.list) {
@@ -332,6 +352,63 @@ TEST_F(SparseMeshParityTest, FieldExtrapolationAndDeformedMeshMatchTheCpuAndTheD
         std::max({worst_live, std::fabs(live[i].x - b.x), std::fabs(live[i].y - b.y), std::fabs(live[i].z - b.z)});
   }
   EXPECT_LT(worst_live, 1e-5f);
+}
+
+// After a solve over the surface points, the ring follows them on the bricks: under a rigid motion
+// of the surface points every ring point lands on it and counts the solve, surface points stay;
+// device against the shared function on the CPU.
+TEST_F(SparseMeshParityTest, RingFollowsTheSolvedSurfaceAndMatchesTheCpu) {
+  ocl::Context* ctx = ctx_;
+  DeviceOps& ops = *ops_;
+  test::FusedBricks& f = f_;
+  DeviceActiveSet active, solved;
+  ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active, &solved).ok());
+  const size_t m = active.count, n = size_t(f.counts.used) * VD_BRICK_VOXELS;
+  ASSERT_GT(m, solved.count + 1000);
+  const std::vector<int32_t> list = test::FromDevice(ctx, active.list, m),
+                             surface_list = test::FromDevice(ctx, solved.list, solved.count);
+  std::vector<uint8_t> surface(n, 0);
+  for (int32_t v : surface_list) surface[v] = 1;
+  // The surface points on a rigid motion (a turn of 0.4 rad about z and a shift; w = 4), the ring
+  // at rest (w = 1).
+  const float a = 0.4f, c = std::cos(a), s = std::sin(a);
+  auto moved = [&](vd_float4 p) { return VD_F4(c * p.x - s * p.y + 0.01f, s * p.x + c * p.y, p.z - 0.02f, 0.f); };
+  std::vector<vd_float4> pos = test::FromDevice(ctx, f.pool->def_pos, n),
+                         rot = test::FromDevice(ctx, f.pool->def_rot, n);
+  const std::vector<vd_float4> rest = pos;
+  for (int32_t v : list) {
+    if (surface[v]) {
+      pos[v] = moved(pos[v]);
+      pos[v].w = 4.f;
+      rot[v] = VD_F4(0.f, 0.f, std::sin(a / 2), std::cos(a / 2));
+    } else {
+      pos[v].w = 1.f;
+    }
+  }
+  ASSERT_TRUE(ctx->Upload(f.pool->def_pos, pos.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(f.pool->def_rot, rot.data(), n).ok());
+  ASSERT_TRUE(ops.Follow(*f.table, *f.pool, active, f.vol.voxel_size).ok());
+  const std::vector<vd_float4> dpos = test::FromDevice(ctx, f.pool->def_pos, n),
+                               drot = test::FromDevice(ctx, f.pool->def_rot, n);
+
+  const std::vector<int32_t> nbr = cpu::BrickNeighbours(f.Reference(ctx), f.counts.used);
+  std::vector<vd_float4> cp = pos, cr = rot;
+  float worst = 0.f;
+  for (int32_t v : list) {
+    vd_sparse_follow_point(v, surface.data(), nbr.data(), pos.data(), rot.data(), f.vol.voxel_size, &cp[v], &cr[v]);
+    if (surface[v]) {
+      ASSERT_EQ(cp[v].x, pos[v].x);
+      ASSERT_EQ(cp[v].w, 4.f);
+      continue;
+    }
+    ASSERT_EQ(cp[v].w, 2.f);
+    const vd_float4 want = moved(rest[v]);
+    worst = std::max({worst, std::fabs(cp[v].x - want.x), std::fabs(cp[v].y - want.y), std::fabs(cp[v].z - want.z)});
+  }
+  std::printf("ring: %zu of %zu members; worst %.3g m from the rigid motion\n", m - solved.count, m, worst);
+  EXPECT_LT(worst, 1e-5f);
+  EXPECT_TRUE(test::AllClose(test::Flatten(dpos), test::Flatten(cp), 1e-6f, 0.f));
+  EXPECT_TRUE(test::AllClose(test::Flatten(drot), test::Flatten(cr), 0.f, 0.f));
 }
 
 // Allocation for the one-ring: the missing bricks a surface point's 6-neighbour lies in are added

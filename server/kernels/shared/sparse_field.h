@@ -9,32 +9,63 @@
 #include "deformation.h"
 #include "sparse_mesh.h"
 
-/* vd_extrapolate_point for pool voxel v: a point never optimised starts where its optimised
- * 26-neighbours put it as rigid pieces (their mean prediction), with the first one's rotation; a
- * neighbour in a brick that is not allocated does not count. Returns 1 when it was initialised. */
-VD_INLINE int vd_sparse_extrapolate_point(int v, VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
-                                          VD_GLOBAL const vd_float4* def_rot, float voxel_size, vd_float4* pos_out,
-                                          vd_float4* rot_out) {
+/* vd_extrapolate_gather for pool voxel v: the rigid predictions of its optimised 26-neighbours
+ * (with surface != 0 only surface points), a neighbour in a brick that is not allocated not
+ * counting. */
+VD_INLINE void vd_sparse_extrapolate_gather(int v, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const int* nbr,
+                                            VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
+                                            float voxel_size, vd_float4* disp, float* n, int* first) {
   int slot = v / VD_BRICK_VOXELS, in_brick = v % VD_BRICK_VOXELS;
   int x = in_brick % VD_BRICK, y = (in_brick / VD_BRICK) % VD_BRICK, z = in_brick / VD_BRICK_ROWS;
-  *pos_out = def_pos[v];
-  *rot_out = def_rot[v];
-  if (def_pos[v].w > 0.0f) return 0;
-  vd_float4 disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  float n = 0.0f;
-  int first = -1;
+  *disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  *n = 0.0f;
+  *first = -1;
   for (int k = 0; k < 27; ++k) {
     int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
     if (k == 13) continue;
     int j = vd_brick_voxel_at(nbr, slot, x + dx, y + dy, z + dz);
     if (j < 0) continue;
+    if (surface != 0 && !surface[j]) continue;
     vd_float4 t = def_pos[j];
     if (!(t.w > 0.0f)) continue;
-    disp = disp + vd_extrapolate_prediction(t, def_rot[j], dx, dy, dz, voxel_size);
-    n += 1.0f;
-    if (first < 0) first = j;
+    *disp = *disp + vd_extrapolate_prediction(t, def_rot[j], dx, dy, dz, voxel_size);
+    *n += 1.0f;
+    if (*first < 0) *first = j;
   }
+}
+
+/* vd_extrapolate_point for pool voxel v: a point never optimised starts where its optimised
+ * 26-neighbours put it as rigid pieces (their mean prediction), with the first one's rotation.
+ * Returns 1 when it was initialised. */
+VD_INLINE int vd_sparse_extrapolate_point(int v, VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
+                                          VD_GLOBAL const vd_float4* def_rot, float voxel_size, vd_float4* pos_out,
+                                          vd_float4* rot_out) {
+  *pos_out = def_pos[v];
+  *rot_out = def_rot[v];
+  if (def_pos[v].w > 0.0f) return 0;
+  vd_float4 disp;
+  float n;
+  int first;
+  vd_sparse_extrapolate_gather(v, 0, nbr, def_pos, def_rot, voxel_size, &disp, &n, &first);
   return vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out);
+}
+
+/* vd_follow_point for pool voxel v: a ring point of M follows its solved (surface) neighbours and
+ * counts the solve. Returns 1 when it moved. */
+VD_INLINE int vd_sparse_follow_point(int v, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const int* nbr,
+                                     VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
+                                     float voxel_size, vd_float4* pos_out, vd_float4* rot_out) {
+  *pos_out = def_pos[v];
+  *rot_out = def_rot[v];
+  if (surface[v]) return 0;
+  vd_float4 disp;
+  float n;
+  int first;
+  vd_sparse_extrapolate_gather(v, surface, nbr, def_pos, def_rot, voxel_size, &disp, &n, &first);
+  float w = def_pos[v].w;
+  if (!vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out)) return 0;
+  pos_out->w = w + 1.0f;
+  return 1;
 }
 
 /* The pool slot and local coordinates of the brick holding global grid point (cx, cy, cz) (through

@@ -899,7 +899,7 @@ Status Engine::NonRigid(FrameResult* result) {
   if (bricks_) {
     VD_RETURN_IF_ERROR(PrepareBricks(result));
     VD_RETURN_IF_ERROR(
-        solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, active_));
+        solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, solved_));
   } else {
     VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_, &solved_));
     VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
@@ -933,6 +933,7 @@ Status Engine::NonRigid(FrameResult* result) {
     if (bricks_) {
       VD_ASSIGN_OR_RETURN(summary, solver_->Solve(pool_->def_pos, pool_->def_rot, corr_, total, energies));
       VD_RETURN_IF_ERROR(solver_->WriteBack(pool_->def_pos, pool_->def_rot));
+      VD_RETURN_IF_ERROR(ops_.Follow(*bricks_, *pool_, active_, volume_.vol.voxel_size));
     } else {
       VD_ASSIGN_OR_RETURN(summary, solver_->Solve(volume_, corr_, total, energies));
       VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
@@ -1173,7 +1174,7 @@ Status Engine::RefreshBricks(uint32_t used_before, FrameResult* result) {
   // The surface's cells and M again, over the new bricks too (marching cubes rebuilds the
   // neighbour table; the new bricks are empty, so the mesh is the same).
   VD_RETURN_IF_ERROR(ops_.MarchingCubes(*bricks_, *pool_, &mesh_));
-  return ops_.BuildActiveSet(*bricks_, &active_);
+  return ops_.BuildActiveSet(*bricks_, &active_, &solved_);
 }
 
 Status Engine::GrowBricks(const RgbdFrame& frame, FrameResult* result) {
@@ -1255,7 +1256,7 @@ void Engine::NoteEviction(uint32_t dropped, FrameResult* result) {
 Status Engine::PrepareBricks(FrameResult* result) {
   result->bricks_used = bricks_in_use_;
   result->bricks_pool = bricks_->pool();
-  VD_RETURN_IF_ERROR(ops_.BuildActiveSet(*bricks_, &active_));
+  VD_RETURN_IF_ERROR(ops_.BuildActiveSet(*bricks_, &active_, &solved_));
   // The one-ring of the surface where its brick is missing, then the corners of every coarse
   // level's cells (the coarsest's bricks hold the finer ones'): each found once, so after the first
   // frames of a region both add nothing and cost a count.

@@ -221,7 +221,7 @@ void BrickLevelAllocate(const int32_t* list, size_t n, int s, uint32_t used, Bri
                             t->pool, t->counters);
 }
 
-ActiveSet SparseActiveSet(const BrickTable& t, uint32_t used, const uint16_t* codes) {
+ActiveSet SparseActiveSet(const BrickTable& t, uint32_t used, const uint16_t* codes, ActiveSet* solved) {
   const McTable& table = GetMcTable();
   const std::vector<int32_t> nbr = BrickNeighbours(t, used);
   const size_t n = size_t(used) * VD_BRICK_VOXELS;
@@ -240,20 +240,24 @@ ActiveSet SparseActiveSet(const BrickTable& t, uint32_t used, const uint16_t* co
     member[i] = vd_sparse_dilate_point(surface.data(), nbr.data(), s, x, y, z);
   });
   // Independent of the device's scan: a sequential compaction.
-  ActiveSet out;
-  out.compact.assign(n, -1);
-  for (size_t i = 0; i < n; ++i) {
-    if (!member[i]) continue;
-    out.compact[i] = int32_t(out.list.size());
-    out.list.push_back(int32_t(i));
-  }
-  out.neighbours.resize(6 * out.list.size());
-  for (size_t k = 0; k < out.list.size(); ++k) {
-    const int v = out.list[k] % VD_BRICK_VOXELS;
-    vd_sparse_neighbours_of(out.compact.data(), nbr.data(), out.list[k] / VD_BRICK_VOXELS, v % VD_BRICK,
-                            (v / VD_BRICK) % VD_BRICK, v / VD_BRICK_ROWS, &out.neighbours[6 * k]);
-  }
-  return out;
+  auto compact = [&](const std::vector<uint8_t>& flags) {
+    ActiveSet out;
+    out.compact.assign(n, -1);
+    for (size_t i = 0; i < n; ++i) {
+      if (!flags[i]) continue;
+      out.compact[i] = int32_t(out.list.size());
+      out.list.push_back(int32_t(i));
+    }
+    out.neighbours.resize(6 * out.list.size());
+    for (size_t k = 0; k < out.list.size(); ++k) {
+      const int v = out.list[k] % VD_BRICK_VOXELS;
+      vd_sparse_neighbours_of(out.compact.data(), nbr.data(), out.list[k] / VD_BRICK_VOXELS, v % VD_BRICK,
+                              (v / VD_BRICK) % VD_BRICK, v / VD_BRICK_ROWS, &out.neighbours[6 * k]);
+    }
+    return out;
+  };
+  if (solved) *solved = compact(surface);
+  return compact(member);
 }
 
 }  // namespace vd::cpu

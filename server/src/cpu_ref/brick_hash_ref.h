@@ -72,6 +72,7 @@ void BrickRingAllocate(const uint8_t* surface, uint32_t used, BrickTable* table)
 void BrickLevelAllocate(const int32_t* list, size_t n, int s, uint32_t used, BrickTable* table);
 // The active set over the first `used` slots from SparseMarchingCubes' codes: list and compact in
 // pool voxel indices, 6 neighbours per member.
-ActiveSet SparseActiveSet(const BrickTable& table, uint32_t used, const uint16_t* codes);
+// solved: also the surface points alone (the solver's unknowns).
+ActiveSet SparseActiveSet(const BrickTable& table, uint32_t used, const uint16_t* codes, ActiveSet* solved = nullptr);
 
 }  // namespace vd::cpu

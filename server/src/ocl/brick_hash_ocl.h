@@ -76,6 +76,10 @@ inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<int32_t>&
                              const Buffer<vd_float4>& def_rot, float voxel_size, Buffer<vd_float4>& pos_out,
                              Buffer<vd_float4>& rot_out)>
     kSparseExtrapolate{"vd_sparse_extrapolate"};
+// One item per member of M (pool indices; the ring points write, surface: 1 at the solved ones).
+inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<uint8_t>& surface, const Buffer<int32_t>& nbr,
+                             Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot, float voxel_size)>
+    kSparseFollow{"vd_sparse_follow"};
 // One item per voxel of the listed slots (-1: skipped).
 inline constexpr Kernel<void(const Buffer<int32_t>& grow_slots, const Buffer<VdPose>& motion,
                              const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf, Buffer<float>& weight,

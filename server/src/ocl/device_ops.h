@@ -192,12 +192,14 @@ class DeviceOps {
   // After a solve over the surface points of M (`solved` of the last BuildActiveSet), its ring points
   // follow their solved neighbours (shared/deformation.h vd_follow_point).
   Status Follow(DeviceVolume& v, const DeviceActiveSet& active);
+  // The same over a sparse volume's M (the last BuildActiveSet(table, ...) with `solved`).
+  Status Follow(const ocl::BrickTable& table, ocl::BrickPool& pool, const DeviceActiveSet& active, float voxel_size);
   // M from the cell codes of the last MarchingCubes() call on v; with `solved`, also the set of its
   // surface points alone (the corners of cells with triangles: the solver's unknowns).
   Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out, DeviceActiveSet* solved = nullptr);
   // M over a sparse volume from the last MarchingCubes() call on its bricks: list and compact hold
   // pool voxel indices (slot * 512 + local) for grid indices.
-  Status BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out);
+  Status BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out, DeviceActiveSet* solved = nullptr);
   // Bricks for the one-ring of the surface the last BuildActiveSet(table, ...) found, where their
   // brick is missing (BrickTable::AllocateRing); how many were added (0: M is whole).
   StatusOr<uint32_t> AllocateActiveRing(ocl::BrickTable& table);

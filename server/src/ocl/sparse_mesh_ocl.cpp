@@ -35,13 +35,17 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
                                  mc_vert_offset_, nbr, mesh->triangles);
 }
 
-Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out) {
+Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out, DeviceActiveSet* solved) {
   VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, table.Counts(*ctx_));
   const size_t n = size_t(counts.used) * VD_BRICK_VOXELS, rows = size_t(counts.used) * VD_BRICK_ROWS;
   if (mc_codes_.size() < n || table.neighbours().size() < size_t(VD_BRICK_NEIGHBOURS) * counts.used)
     return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on these bricks");
   out->count = 0;
   out->kept = VdVolume{};
+  if (solved) {
+    solved->count = 0;
+    solved->kept = VdVolume{};
+  }
   if (counts.used == 0) return Status::Ok();
   const ocl::Buffer<int32_t>& nbr = table.neighbours();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_surface_, n));
@@ -57,7 +61,24 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   VD_RETURN_IF_ERROR(SizeActiveSet(rows, active_row_count_, out));
   VD_RETURN_IF_ERROR(
       ocl::kSparseActiveCompact(*ctx_, rows, active_member_, active_row_offset_, out->list, out->compact));
-  return ocl::kSparseActiveNeighbours(*ctx_, out->count, out->list, out->compact, nbr, out->neighbours);
+  VD_RETURN_IF_ERROR(ocl::kSparseActiveNeighbours(*ctx_, out->count, out->list, out->compact, nbr, out->neighbours));
+  if (!solved) return Status::Ok();
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_surface_, rows));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&solved->compact, n));
+  VD_RETURN_IF_ERROR(ocl::kSparseActiveRows(*ctx_, rows, active_surface_, active_row_surface_));
+  VD_RETURN_IF_ERROR(SizeActiveSet(rows, active_row_surface_, solved));
+  VD_RETURN_IF_ERROR(
+      ocl::kSparseActiveCompact(*ctx_, rows, active_surface_, active_row_offset_, solved->list, solved->compact));
+  return ocl::kSparseActiveNeighbours(*ctx_, solved->count, solved->list, solved->compact, nbr, solved->neighbours);
+}
+
+Status DeviceOps::Follow(const ocl::BrickTable& table, ocl::BrickPool& pool, const DeviceActiveSet& active,
+                         float voxel_size) {
+  if (!pool.with_field) return FailedPrecondition("Follow needs a brick pool with a deformation field");
+  if (active.count == 0) return Status::Ok();
+  if (active_surface_.size() == 0) return FailedPrecondition("Follow needs a BuildActiveSet on these bricks");
+  return ocl::kSparseFollow(*ctx_, active.count, active.list, active_surface_, table.neighbours(), pool.def_pos,
+                            pool.def_rot, voxel_size);
 }
 
 StatusOr<uint32_t> DeviceOps::AllocateActiveRing(ocl::BrickTable& table) {
