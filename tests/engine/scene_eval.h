@@ -54,6 +54,7 @@ struct SceneErrors {
   double process_cpu_ms = 0;
   int frames = 0;
   double mean_active_voxels = 0;
+  double mean_solved_voxels = 0;
   size_t device_peak_bytes = 0;
   // Sparse features per frame (means): detected, lifted, matches used; detection + description ms.
   double mean_features = 0, mean_lifted = 0, mean_matches = 0, mean_extract_ms = 0, mean_match_ms = 0,
@@ -133,7 +134,7 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   if (run.track_mesh) VD_RETURN_IF_ERROR(engine->TrackMesh());
   TriangleMesh first_canonical;
   const MeshDistance gt0(scene->GroundTruthMesh(0));
-  double sum_surface = 0, sum_active = 0, window_surface = 0;
+  double sum_surface = 0, sum_active = 0, sum_solved = 0, window_surface = 0;
   int window_frames = 0;
   int last = 0;
   const int step = std::max(1, run.stride);
@@ -177,6 +178,7 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
       out.total_ms += r.times.ms[i];
     }
     sum_active += double(r.active_voxels);
+    sum_solved += double(r.solved_voxels);
     if (run.track_mesh && out.frames == 1) first_canonical = r.canonical_mesh;
     if (run.track_mesh && k == last) {
       // Each tracked vertex's material point (its closest point on frame 0's true surface), where
@@ -256,6 +258,7 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   const int n = std::max(1, out.frames);
   out.mean_surface_mm = sum_surface / n;
   out.mean_active_voxels = sum_active / n;
+  out.mean_solved_voxels = sum_solved / n;
   out.mean_features /= n;
   out.mean_lifted /= n;
   out.mean_matches /= n;

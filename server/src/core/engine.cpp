@@ -1097,6 +1097,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   result.times[Stage::kDownload] += MsSince(t_tracked);
   model_pose_ = pose_;
   result.active_voxels = int64_t(active_.count);
+  result.solved_voxels = int64_t(solved_.count);
   return result;
 }
 

@@ -166,6 +166,8 @@ struct FrameResult {
   int icp_inliers = 0;
   float icp_rmse = 0.f;
   int64_t active_voxels = 0;
+  // Of them the surface points, the solver's unknowns (the rest, the one-ring, follows them).
+  int64_t solved_voxels = 0;
   // Sparse volume: bricks in the pool, the pool's size, and the bricks this frame's band needed
   // but found no room for (nonzero: the pool is full with this frame's own surface, which was not
   // all fused). A full pool first drops the bricks seen longest ago: how many this frame, and since

@@ -13,9 +13,13 @@ namespace vd {
 class FlagParser;
 
 struct SolverParams {
-  // Weights of the dense point-to-plane term and the ARAP prior (paper eq. 1).
+  // Weights of the dense point-to-plane term and the ARAP prior (paper eq. 1). w_reg was 2 while
+  // the one-ring was solved too; over the surface points alone each point has fewer ARAP edges,
+  // and 3 restores the rigid scene's stiffness (non-rigid displacement over 150 frames 0.76 mm at
+  // 2, 0.72 at 3, 0.69 before) while the tube's drift falls 1.45 -> 1.08 mm (docs/BENCHMARKS.md
+  // "Session 26").
   float w_dense = 1.f;
-  float w_reg = 2.f;
+  float w_reg = 3.f;
   // Damping towards the current positions, relative to w_reg: keeps parts without data still.
   float damping = 1e-4f;
   // Flip-flop iterations (position step + rotation step) per solve, on the finest level; with the
