@@ -66,7 +66,8 @@ int main(int argc, char** argv) {
         "bundle adjustment per frame (mean): %.1f ms, %.0f links, %.0f nodes, disagreement %.2f -> %.2f voxels\n",
         e->mean_bundle_ms, e->mean_bundle_links, e->mean_bundle_nodes, e->mean_bundle_rms_before,
         e->mean_bundle_rms_after);
-  std::printf("active grid points (mean) %.0f, of them solved %.0f, OpenCL buffers peak %.1f MB, resident peak %.1f MB\n",
-              e->mean_active_voxels, e->mean_solved_voxels, e->device_peak_bytes / 1e6, vd::PeakResidentBytes() / 1e6);
+  std::printf(
+      "active grid points (mean) %.0f, of them solved %.0f, OpenCL buffers peak %.1f MB, resident peak %.1f MB\n",
+      e->mean_active_voxels, e->mean_solved_voxels, e->device_peak_bytes / 1e6, vd::PeakResidentBytes() / 1e6);
   return 0;
 }

@@ -157,9 +157,8 @@ TEST(DeformationParityTest, RingPointsFollowTheSolvedSurfaceAndMatchCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  test::AnalyticVolume sphere =
-      test::MakeSphereVolume(test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f,
-                             0.08f);
+  test::AnalyticVolume sphere = test::MakeSphereVolume(
+      test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f, 0.08f);
   const VdVolume& vol = sphere.vol;
   const size_t n = sphere.tsdf.size();
   const cpu::McMesh mesh = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), vol);

@@ -24,7 +24,8 @@ inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<vd_float4
                              Buffer<vd_float4>& rot_out)> kExtrapolate{"vd_extrapolate"};
 // One item per member of M (the ring points write; surface: 1 at the solved points).
 inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<uint8_t>& surface, Buffer<vd_float4>& def_pos,
-                             Buffer<vd_float4>& def_rot, VdVolume vol)> kFollow{"vd_follow"};
+                             Buffer<vd_float4>& def_rot, VdVolume vol)>
+    kFollow{"vd_follow"};
 // One item per active point.
 inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<vd_float4>& pos_in,
                              const Buffer<vd_float4>& rot_in, Buffer<vd_float4>& def_pos,
