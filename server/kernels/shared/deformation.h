@@ -63,10 +63,26 @@ VD_INLINE int vd_extrapolate_finish(vd_float4 disp, float n, int first, VD_GLOBA
   return 1;
 }
 
-/* The sum of the rigid predictions of grid point gi's optimised 26-neighbours j (w > 0), with
- * surface != 0 only those that are surface points of M (solved this frame), into disp, their count
- * n and the first one's index. */
-VD_INLINE void vd_extrapolate_gather(int gi, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const vd_float4* def_pos,
+/* Offset k of a gather around a point: the 6 face neighbours (-x, +x, -y, +y, -z, +z) with
+ * faces_only, else the 26-neighbourhood (k in 0..26, 13 the point itself: returns 0). */
+VD_INLINE int vd_gather_offset(int faces_only, int k, int* dx, int* dy, int* dz) {
+  if (faces_only) {
+    int axis = k >> 1, sign = (k & 1) ? 1 : -1;
+    *dx = axis == 0 ? sign : 0;
+    *dy = axis == 1 ? sign : 0;
+    *dz = axis == 2 ? sign : 0;
+    return 1;
+  }
+  *dx = k % 3 - 1;
+  *dy = (k / 3) % 3 - 1;
+  *dz = k / 9 - 1;
+  return k != 13;
+}
+
+/* The sum of the rigid predictions of grid point gi's optimised neighbours j (w > 0; the 6 face
+ * neighbours with faces_only, else the 26), with surface != 0 only those that are surface points of
+ * M (solved this frame), into disp, their count n and the first one's index. */
+VD_INLINE void vd_extrapolate_gather(int gi, VD_GLOBAL const vd_uchar* surface, int faces_only, VD_GLOBAL const vd_float4* def_pos,
                                      VD_GLOBAL const vd_float4* def_rot, VdVolume vol, vd_float4* disp, float* n,
                                      int* first) {
   int x = gi % vol.dim_x, yz = gi / vol.dim_x;
@@ -74,8 +90,9 @@ VD_INLINE void vd_extrapolate_gather(int gi, VD_GLOBAL const vd_uchar* surface, 
   *disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   *n = 0.0f;
   *first = -1;
-  for (int k = 0; k < 27; ++k) {
-    int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
+  for (int k = 0; k < (faces_only ? 6 : 27); ++k) {
+    int dx, dy, dz;
+    if (!vd_gather_offset(faces_only, k, &dx, &dy, &dz)) continue;
     int nx = x + dx, ny = y + dy, nz = z + dz;
     if (k == 13 || nx < 0 || ny < 0 || nz < 0 || nx >= vol.dim_x || ny >= vol.dim_y || nz >= vol.dim_z) continue;
     int j = nx + vol.dim_x * (ny + vol.dim_y * nz);
@@ -103,17 +120,19 @@ VD_INLINE int vd_extrapolate_point(int gi, VD_GLOBAL const vd_float4* def_pos, V
   vd_float4 disp;
   float n;
   int first;
-  vd_extrapolate_gather(gi, 0, def_pos, def_rot, vol, &disp, &n, &first);
+  vd_extrapolate_gather(gi, 0, 0, def_pos, def_rot, vol, &disp, &n, &first);
   return vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out);
 }
 
 /* A ring point of M (a 6-neighbour of the surface that is no corner of a surface cell) is no
  * unknown of the solve: no data term reaches it, and its ARAP edges only carry its solved
- * neighbours' motion on. After each solve it follows them instead, to the mean of their rigid
- * predictions t_j + R_j (t^_i - t^_j) with the first one's rotation, the ARAP prior's own answer
- * for a point without data, and counts the solve (w + 1), so fusion's K_min wait runs as for a
- * solved point. surface: 1 at the surface points (the solved ones). Returns 1 when it moved (a
- * surface point, or a ring point without a solved neighbour, keeps its state). */
+ * neighbours' motion on. After each solve it follows them instead: to the mean of the rigid
+ * predictions t_j + R_j (t^_i - t^_j) of its solved face neighbours j (its ARAP edges; it has at
+ * least one by construction) with the first one's rotation, the ARAP prior's own answer for a
+ * point without data, and counts the solve (w + 1), so fusion's K_min wait runs as for a solved
+ * point. The face neighbours alone cost a third of the 26 (vd_follow 119 -> 41 ms over 60 tube
+ * frames) and give the same drift. surface: 1 at the surface points (the solved ones). Returns 1
+ * when it moved (a surface point, or a ring point without a solved neighbour, keeps its state). */
 VD_INLINE int vd_follow_point(int gi, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const vd_float4* def_pos,
                               VD_GLOBAL const vd_float4* def_rot, VdVolume vol, vd_float4* pos_out,
                               vd_float4* rot_out) {
@@ -123,7 +142,7 @@ VD_INLINE int vd_follow_point(int gi, VD_GLOBAL const vd_uchar* surface, VD_GLOB
   vd_float4 disp;
   float n;
   int first;
-  vd_extrapolate_gather(gi, surface, def_pos, def_rot, vol, &disp, &n, &first);
+  vd_extrapolate_gather(gi, surface, 1, def_pos, def_rot, vol, &disp, &n, &first);
   float w = def_pos[gi].w;
   if (!vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out)) return 0;
   pos_out->w = w + 1.0f;

@@ -9,10 +9,10 @@
 #include "deformation.h"
 #include "sparse_mesh.h"
 
-/* vd_extrapolate_gather for pool voxel v: the rigid predictions of its optimised 26-neighbours
- * (with surface != 0 only surface points), a neighbour in a brick that is not allocated not
+/* vd_extrapolate_gather for pool voxel v: the rigid predictions of its optimised neighbours (6 or
+ * 26; with surface != 0 only surface points), a neighbour in a brick that is not allocated not
  * counting. */
-VD_INLINE void vd_sparse_extrapolate_gather(int v, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const int* nbr,
+VD_INLINE void vd_sparse_extrapolate_gather(int v, VD_GLOBAL const vd_uchar* surface, int faces_only, VD_GLOBAL const int* nbr,
                                             VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
                                             float voxel_size, vd_float4* disp, float* n, int* first) {
   int slot = v / VD_BRICK_VOXELS, in_brick = v % VD_BRICK_VOXELS;
@@ -20,9 +20,9 @@ VD_INLINE void vd_sparse_extrapolate_gather(int v, VD_GLOBAL const vd_uchar* sur
   *disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   *n = 0.0f;
   *first = -1;
-  for (int k = 0; k < 27; ++k) {
-    int dx = k % 3 - 1, dy = (k / 3) % 3 - 1, dz = k / 9 - 1;
-    if (k == 13) continue;
+  for (int k = 0; k < (faces_only ? 6 : 27); ++k) {
+    int dx, dy, dz;
+    if (!vd_gather_offset(faces_only, k, &dx, &dy, &dz)) continue;
     int j = vd_brick_voxel_at(nbr, slot, x + dx, y + dy, z + dz);
     if (j < 0) continue;
     if (surface != 0 && !surface[j]) continue;
@@ -46,12 +46,12 @@ VD_INLINE int vd_sparse_extrapolate_point(int v, VD_GLOBAL const int* nbr, VD_GL
   vd_float4 disp;
   float n;
   int first;
-  vd_sparse_extrapolate_gather(v, 0, nbr, def_pos, def_rot, voxel_size, &disp, &n, &first);
+  vd_sparse_extrapolate_gather(v, 0, 0, nbr, def_pos, def_rot, voxel_size, &disp, &n, &first);
   return vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out);
 }
 
-/* vd_follow_point for pool voxel v: a ring point of M follows its solved (surface) neighbours and
- * counts the solve. Returns 1 when it moved. */
+/* vd_follow_point for pool voxel v: a ring point of M follows its solved (surface) face neighbours
+ * and counts the solve. Returns 1 when it moved. */
 VD_INLINE int vd_sparse_follow_point(int v, VD_GLOBAL const vd_uchar* surface, VD_GLOBAL const int* nbr,
                                      VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
                                      float voxel_size, vd_float4* pos_out, vd_float4* rot_out) {
@@ -61,7 +61,7 @@ VD_INLINE int vd_sparse_follow_point(int v, VD_GLOBAL const vd_uchar* surface, V
   vd_float4 disp;
   float n;
   int first;
-  vd_sparse_extrapolate_gather(v, surface, nbr, def_pos, def_rot, voxel_size, &disp, &n, &first);
+  vd_sparse_extrapolate_gather(v, surface, 1, nbr, def_pos, def_rot, voxel_size, &disp, &n, &first);
   float w = def_pos[v].w;
   if (!vd_extrapolate_finish(disp, n, first, def_rot, pos_out, rot_out)) return 0;
   pos_out->w = w + 1.0f;
