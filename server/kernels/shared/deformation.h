@@ -82,9 +82,9 @@ VD_INLINE int vd_gather_offset(int faces_only, int k, int* dx, int* dy, int* dz)
 /* The sum of the rigid predictions of grid point gi's optimised neighbours j (w > 0; the 6 face
  * neighbours with faces_only, else the 26), with surface != 0 only those that are surface points of
  * M (solved this frame), into disp, their count n and the first one's index. */
-VD_INLINE void vd_extrapolate_gather(int gi, VD_GLOBAL const vd_uchar* surface, int faces_only, VD_GLOBAL const vd_float4* def_pos,
-                                     VD_GLOBAL const vd_float4* def_rot, VdVolume vol, vd_float4* disp, float* n,
-                                     int* first) {
+VD_INLINE void vd_extrapolate_gather(int gi, VD_GLOBAL const vd_uchar* surface, int faces_only,
+                                     VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
+                                     VdVolume vol, vd_float4* disp, float* n, int* first) {
   int x = gi % vol.dim_x, yz = gi / vol.dim_x;
   int y = yz % vol.dim_y, z = yz / vol.dim_y;
   *disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);

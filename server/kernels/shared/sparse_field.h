@@ -12,9 +12,10 @@
 /* vd_extrapolate_gather for pool voxel v: the rigid predictions of its optimised neighbours (6 or
  * 26; with surface != 0 only surface points), a neighbour in a brick that is not allocated not
  * counting. */
-VD_INLINE void vd_sparse_extrapolate_gather(int v, VD_GLOBAL const vd_uchar* surface, int faces_only, VD_GLOBAL const int* nbr,
-                                            VD_GLOBAL const vd_float4* def_pos, VD_GLOBAL const vd_float4* def_rot,
-                                            float voxel_size, vd_float4* disp, float* n, int* first) {
+VD_INLINE void vd_sparse_extrapolate_gather(int v, VD_GLOBAL const vd_uchar* surface, int faces_only,
+                                            VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
+                                            VD_GLOBAL const vd_float4* def_rot, float voxel_size, vd_float4* disp,
+                                            float* n, int* first) {
   int slot = v / VD_BRICK_VOXELS, in_brick = v % VD_BRICK_VOXELS;
   int x = in_brick % VD_BRICK, y = (in_brick / VD_BRICK) % VD_BRICK, z = in_brick / VD_BRICK_ROWS;
   *disp = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
