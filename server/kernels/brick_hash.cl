@@ -40,6 +40,14 @@ __kernel void vd_brick_table_lookup(__global const uint* in, __global const uint
   out[i] = vd_brick_find(keys, slots, capacity, in[i]);
 }
 
+/* One work item per slot first.. of a batch whose keys were put in key order. */
+__kernel void vd_brick_table_reslot(__global const uint* slot_keys, int first, __global const uint* keys,
+                                    __global int* slots, uint capacity, int vd_items) {
+  int i = get_global_id(0);
+  if (i >= vd_items) return;
+  vd_brick_reslot(first + i, slot_keys, keys, slots, capacity);
+}
+
 /* One work item per entry of the old table: kept bricks go into the new one, renumbered. */
 __kernel void vd_brick_table_compact(__global const uint* old_keys, __global const int* old_slots,
                                      __global const uint* keep, __global const uint* offsets,

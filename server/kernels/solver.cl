@@ -39,17 +39,23 @@ __kernel void vd_constraint_count(__global const VdCorrespondence* corr, __globa
   if (kc >= 0) atomic_inc(&counts[kc]);
 }
 
-/* Also writes each sorted constraint's cell (the compact index of its first corner). */
-__kernel void vd_constraint_scatter(__global const VdCorrespondence* corr, __global const int* cell_of,
-                                    __global const uint* cell_start, __global uint* cursor,
-                                    __global VdCorrespondence* sorted, __global int* sorted_cell, int vd_items) {
+/* Each constraint takes a place in its cell's range of order[] (in whatever order the atomics
+ * give; vd_constraint_order then fixes it). */
+__kernel void vd_constraint_scatter(__global const int* cell_of, __global const uint* cell_start,
+                                    __global uint* cursor, __global int* order, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
   int kc = cell_of[i];
   if (kc < 0) return;
-  uint c = cell_start[kc] + atomic_inc(&cursor[kc]);
-  sorted[c] = corr[i];
-  sorted_cell[c] = kc;
+  order[cell_start[kc] + atomic_inc(&cursor[kc])] = i;
+}
+
+/* One item per cell: its constraints in input order, copied into place with their cell. */
+__kernel void vd_constraint_order(__global const VdCorrespondence* corr, __global const uint* cell_start,
+                                  __global int* order, __global VdCorrespondence* sorted, __global int* sorted_cell,
+                                  int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_constraint_order_cell(get_global_id(0), corr, cell_start, order, sorted, sorted_cell);
 }
 
 __kernel void vd_constraint_targets(__global const VdCorrespondence* cons, __global float* targets, int vd_items) {

@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <map>
 #include <random>
 #include <tuple>
@@ -27,8 +28,13 @@ using test::ToDevice;
 struct Problem {
   VdVolume vol{};
   cpu::ActiveSet active;
-  // Constraints sorted by cell and the cells' ranges (m + 1 entries).
+  // The constraints as they came, and each one's cell (-1: none).
+  std::vector<VdCorrespondence> raw;
+  std::vector<int> cell_of;
+  // Constraints sorted by cell (cpu::SortConstraints), each one's cell, and the cells' ranges (m + 1
+  // entries).
   std::vector<VdCorrespondence> cons;
+  std::vector<int> cons_cell;
   std::vector<vd_uint> cell_start;
 };
 
@@ -59,18 +65,24 @@ Problem MakeProblem() {
       raw.push_back(c);
     }
   }
-  // Counting sort by cell, as the device's count/scan/scatter does (order within a cell aside).
+  // A crowded cell (more than vd_sort_indices' insertion sort takes): 40 more constraints in the
+  // cell of the first vertex's first one that has a cell, each a little off the last.
+  for (size_t i = 0; i < raw.size(); ++i) {
+    if (vd_constraint_cell(raw[i], p.active.compact.data(), p.vol) < 0) continue;
+    for (int r = 1; r <= 40; ++r) {
+      VdCorrespondence c = raw[i];
+      c.target.z += 1e-4f * float(r);
+      c.canonical.w = 0.1f + 0.01f * float(r);
+      raw.push_back(c);
+    }
+    break;
+  }
   const int m = int(p.active.list.size());
-  std::vector<std::vector<VdCorrespondence>> by_cell(m);
-  for (const auto& c : raw) {
-    const int kc = vd_constraint_cell(c, p.active.compact.data(), p.vol);
-    if (kc >= 0) by_cell[kc].push_back(c);
-  }
-  p.cell_start.assign(m + 1, 0u);
-  for (int k = 0; k < m; ++k) {
-    p.cell_start[k + 1] = p.cell_start[k] + vd_uint(by_cell[k].size());
-    p.cons.insert(p.cons.end(), by_cell[k].begin(), by_cell[k].end());
-  }
+  p.cell_of.resize(raw.size());
+  for (size_t i = 0; i < raw.size(); ++i)
+    p.cell_of[i] = vd_constraint_cell(raw[i], p.active.compact.data(), p.vol);
+  cpu::SortConstraints(raw.data(), p.cell_of.data(), int(raw.size()), m, &p.cell_start, &p.cons, &p.cons_cell);
+  p.raw = std::move(raw);
   return p;
 }
 
@@ -164,6 +176,72 @@ StatusOr<DeviceSystem> BuildOnDevice(ocl::Context* ctx, const Problem& p, const 
   VD_RETURN_IF_ERROR(ocl::BuildBtb(*ctx, DeviceLattice::Dense(p.vol), a, d_ew, d_cons, d_start, w, moments, sys.blocks,
                                    sys.nbr, sys.rhs, sys.inv));
   return sys;
+}
+
+// vd_sort_indices against std::sort over the sizes both of its branches take, repeats included.
+TEST(SolverParityTest, SortIndicesSortsAsStdSortDoes) {
+  std::mt19937 rng(7);
+  for (int n = 0; n <= 90; ++n) {
+    std::vector<int> a(n);
+    for (int& v : a) v = int(rng() % 50u);
+    std::vector<int> want = a;
+    std::sort(want.begin(), want.end());
+    vd_sort_indices(a.data(), n);
+    EXPECT_EQ(a, want) << n << " indices";
+  }
+}
+
+// The device's counting sort of the constraints by cell (count, a scatter whose atomics place them
+// in any order, then each cell put back in input order) gives the CPU's exactly, bit for bit and
+// place for place, run after run: the sums over a cell, and so the whole solve, repeat exactly.
+TEST(SolverParityTest, ConstraintSortKeepsInputOrderWithinACellAndMatchesTheCpu) {
+  VD_REQUIRE_OCL(ctx);
+  const Problem p = MakeProblem();
+  const size_t n = p.raw.size(), m = p.active.list.size(), total = p.cell_start[m];
+  ASSERT_GT(total, 2000u);
+  // The CPU's order is the input order within each cell.
+  std::vector<vd_uint> next(p.cell_start.begin(), p.cell_start.end() - 1);
+  vd_uint most = 0;
+  for (size_t i = 0; i < n; ++i) {
+    const int kc = p.cell_of[i];
+    if (kc < 0) continue;
+    const vd_uint c = next[kc]++;
+    ASSERT_EQ(0, std::memcmp(&p.cons[c], &p.raw[i], sizeof(VdCorrespondence))) << "constraint " << i;
+    ASSERT_EQ(p.cons_cell[c], kc);
+    most = std::max(most, p.cell_start[kc + 1] - p.cell_start[kc]);
+  }
+  ASSERT_GT(most, 24u) << "no cell crowded enough for the heapsort";
+
+  DeviceActiveSet a;
+  a.count = m;
+  a.list = ToDevice(ctx, p.active.list);
+  a.compact = ToDevice(ctx, p.active.compact);
+  a.neighbours = ToDevice(ctx, p.active.neighbours);
+  const auto d_raw = ToDevice(ctx, p.raw);
+  auto cell_of = ctx->Alloc<int32_t>(n);
+  auto counts = ctx->Alloc<uint32_t>(m + 1);
+  ASSERT_TRUE(cell_of.ok() && counts.ok());
+  ASSERT_TRUE(ctx->Fill(*counts, 0u, m + 1).ok());
+  const Status counted = ocl::CountConstraints(*ctx, n, d_raw, DeviceLattice::Dense(p.vol), a, *cell_of, *counts);
+  ASSERT_TRUE(counted.ok()) << counted.ToString();
+  EXPECT_EQ(FromDevice(ctx, *cell_of, n), p.cell_of);
+  const auto got_counts = FromDevice(ctx, *counts, m);
+  for (size_t k = 0; k < m; ++k) ASSERT_EQ(got_counts[k], p.cell_start[k + 1] - p.cell_start[k]) << "cell " << k;
+
+  const auto d_start = ToDevice(ctx, p.cell_start);
+  auto cursor = ctx->Alloc<uint32_t>(m);
+  auto order = ctx->Alloc<int32_t>(total);
+  auto sorted = ctx->Alloc<VdCorrespondence>(total);
+  auto sorted_cell = ctx->Alloc<int32_t>(total);
+  ASSERT_TRUE(cursor.ok() && order.ok() && sorted.ok() && sorted_cell.ok());
+  for (int run = 0; run < 3; ++run) {
+    ASSERT_TRUE(ctx->Fill(*cursor, 0u, m).ok());
+    const Status st = ocl::SortConstraints(*ctx, n, m, d_raw, *cell_of, d_start, *cursor, *order, *sorted, *sorted_cell);
+    ASSERT_TRUE(st.ok()) << st.ToString();
+    const auto got = FromDevice(ctx, *sorted, total);
+    EXPECT_EQ(0, std::memcmp(got.data(), p.cons.data(), total * sizeof(VdCorrespondence))) << "run " << run;
+    EXPECT_EQ(FromDevice(ctx, *sorted_cell, total), p.cons_cell) << "run " << run;
+  }
 }
 
 TEST(SolverParityTest, CachedBtbBuildMatchesCpuAndAnIndependentAssembly) {

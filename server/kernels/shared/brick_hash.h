@@ -55,16 +55,30 @@ VD_INLINE vd_uint vd_brick_home(vd_uint key, vd_uint capacity) {
   return h & (capacity - 1u);
 }
 
-/* The pool slot of a key, or -1 when the table does not hold it. */
-VD_INLINE int vd_brick_find(VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity, vd_uint key) {
+/* The table entry that holds a key, or -1 when the table does not hold it. */
+VD_INLINE int vd_brick_entry(VD_GLOBAL const vd_uint* keys, vd_uint capacity, vd_uint key) {
   vd_uint h = vd_brick_home(key, capacity);
   for (int p = 0; p < VD_BRICK_MAX_PROBE; ++p) {
     vd_uint k = keys[h];
-    if (k == key) return slots[h];
+    if (k == key) return (int)h;
     if (k == VD_BRICK_EMPTY) return -1;
     h = (h + 1u) & (capacity - 1u);
   }
   return -1;
+}
+
+/* The pool slot of a key, or -1 when the table does not hold it. */
+VD_INLINE int vd_brick_find(VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity, vd_uint key) {
+  int h = vd_brick_entry(keys, capacity, key);
+  return h >= 0 ? slots[h] : -1;
+}
+
+/* After the slots a batch of inserts handed out were put in key order (slot_keys rewritten), the
+ * entry of slot `slot`'s key takes that slot. */
+VD_INLINE void vd_brick_reslot(int slot, VD_GLOBAL const vd_uint* slot_keys, VD_GLOBAL const vd_uint* keys,
+                               VD_GLOBAL int* slots, vd_uint capacity) {
+  int h = vd_brick_entry(keys, capacity, slot_keys[slot]);
+  if (h >= 0) slots[h] = slot;
 }
 
 /* Inserts a key: returns the table entry that holds it and sets *fresh when this call put it

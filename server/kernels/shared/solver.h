@@ -63,6 +63,53 @@ VD_INLINE int vd_constraint_cell(VdCorrespondence c, VD_GLOBAL const int* compac
   return idx[0];
 }
 
+
+/* Moves a[i] down the max-heap a[0..end) to where it belongs (vd_sort_indices' heapsort). */
+VD_INLINE void vd_sift_down(VD_GLOBAL int* a, int i, int end) {
+  int v = a[i];
+  for (int c = 2 * i + 1; c < end; c = 2 * i + 1) {
+    if (c + 1 < end && a[c + 1] > a[c]) ++c;
+    if (a[c] <= v) break;
+    a[i] = a[c];
+    i = c;
+  }
+  a[i] = v;
+}
+
+/* Sorts a[0..n) ascending in place: insertion for the few constraints a fine cell holds, heapsort
+ * (no recursion, no scratch) for a crowded one. */
+VD_INLINE void vd_sort_indices(VD_GLOBAL int* a, int n) {
+  if (n <= 24) {
+    for (int i = 1; i < n; ++i) {
+      int v = a[i], j = i - 1;
+      for (; j >= 0 && a[j] > v; --j) a[j + 1] = a[j];
+      a[j + 1] = v;
+    }
+    return;
+  }
+  for (int r = n / 2 - 1; r >= 0; --r) vd_sift_down(a, r, n);
+  for (int end = n - 1; end > 0; --end) {
+    int top = a[0];
+    a[0] = a[end];
+    a[end] = top;
+    vd_sift_down(a, 0, end);
+  }
+}
+
+/* The counting sort's last step for cell kc: order[] holds the indices of its constraints in
+ * [cell_start[kc], cell_start[kc + 1]) in whatever order the scatter's atomics gave them; they are
+ * put back into input order and copied into place. Every sum over a cell's constraints then adds
+ * in the same order in every run, so a run repeats exactly. */
+VD_INLINE void vd_constraint_order_cell(int kc, VD_GLOBAL const VdCorrespondence* corr,
+                                        VD_GLOBAL const vd_uint* cell_start, VD_GLOBAL int* order,
+                                        VD_GLOBAL VdCorrespondence* sorted, VD_GLOBAL int* sorted_cell) {
+  int s = (int)cell_start[kc], e = (int)cell_start[kc + 1];
+  vd_sort_indices(order + s, e - s);
+  for (int c = s; c < e; ++c) {
+    sorted[c] = corr[order[c]];
+    sorted_cell[c] = kc;
+  }
+}
 /* The active set M on its lattice (shared/lattice.h), as the solver's kernels see it: built in each
  * kernel from its arguments (OpenCL 1.2 kernels cannot take buffers inside a struct). */
 typedef struct {

@@ -144,6 +144,8 @@ class DeviceSolver {
   ocl::Buffer<uint32_t> cell_start_;
   ocl::Buffer<VdCorrespondence> cons_;
   ocl::Buffer<int32_t> cons_cell_;
+  // The counting sort's scratch: each place's constraint index, put in input order per cell.
+  ocl::Buffer<int32_t> cons_order_;
   ocl::Buffer<float> targets_;
   ocl::Buffer<float> residuals_;
   ocl::Buffer<vd_float4> x_, rot_, rest_;

@@ -16,11 +16,27 @@ BrickTable::BrickTable(uint32_t capacity_, uint32_t pool_)
       slot_keys(pool_, VD_BRICK_EMPTY),
       stamp(pool_, 0u) {}
 
+namespace {
+uint32_t Used(const BrickTable& t) { return std::min(t.counters[VD_BRICK_COUNT_TAKEN], t.pool); }
+
+// BrickTable::OrderNewSlots: the slots a batch handed out (from `first`) in key order, with their
+// entries (vd_brick_reslot).
+void OrderNewSlots(uint32_t first, BrickTable* t) {
+  const uint32_t used = Used(*t);
+  if (used <= first + 1) return;
+  std::sort(t->slot_keys.begin() + first, t->slot_keys.begin() + used);
+  for (uint32_t s = first; s < used; ++s)
+    vd_brick_reslot(int(s), t->slot_keys.data(), t->keys.data(), t->slots.data(), t->capacity);
+}
+}  // namespace
+
 void BrickAllocDepth(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation, float brick_size,
                      BrickTable* t) {
+  const uint32_t first = Used(*t);
   for (int i = 0; i < vd_depth_tiles_x(cam) * vd_depth_tiles_y(cam); ++i)
     vd_brick_take_tile(VD_BRICK_ALLOCATE, i, depth, cam, cam_to_world, truncation, brick_size, t->keys.data(),
                        t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, nullptr, 0u, nullptr, t->counters);
+  OrderNewSlots(first, t);
 }
 
 std::vector<int32_t> BrickAllocList(const float* depth, VdCamera cam, VdPose cam_to_world, float truncation,
@@ -28,11 +44,13 @@ std::vector<int32_t> BrickAllocList(const float* depth, VdCamera cam, VdPose cam
   std::vector<uint32_t> entry_stamp(t->capacity, 0u);
   std::vector<int32_t> visible(t->capacity);
   t->counters[VD_BRICK_COUNT_VISIBLE] = 0;
+  const uint32_t first = Used(*t);
   for (int i = 0; i < vd_depth_tiles_x(cam) * vd_depth_tiles_y(cam); ++i)
     vd_brick_take_tile(VD_BRICK_ALLOCATE_LIST, i, depth, cam, cam_to_world, truncation, brick_size, t->keys.data(),
                        t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, entry_stamp.data(), 1u,
                        visible.data(), t->counters);
   visible.resize(t->counters[VD_BRICK_COUNT_VISIBLE]);
+  OrderNewSlots(first, t);
   t->counters[VD_BRICK_COUNT_UNFUSED] = 0;
   for (size_t i = 0; i < visible.size(); ++i)
     vd_brick_entry_slot(int(i), visible.data(), t->slots.data(), t->stamp.data(), 1u, t->counters);
@@ -40,8 +58,10 @@ std::vector<int32_t> BrickAllocList(const float* depth, VdCamera cam, VdPose cam
 }
 
 void BrickInsertKeys(const uint32_t* in, size_t n, BrickTable* t) {
+  const uint32_t first = Used(*t);
   for (size_t i = 0; i < n; ++i)
     vd_brick_allocate(t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity, t->pool, t->counters, in[i]);
+  OrderNewSlots(first, t);
 }
 
 void BrickRestore(const uint32_t* in, size_t n, BrickTable* t) {
@@ -209,16 +229,20 @@ McMesh SparseMarchingCubes(const BrickTable& t, uint32_t used, const float* tsdf
 
 void BrickRingAllocate(const uint8_t* surface, uint32_t used, BrickTable* t) {
   const std::vector<int32_t> nbr = BrickNeighbours(*t, used);
+  const uint32_t first = Used(*t);
   for (uint32_t s = 0; s < used; ++s)
     vd_brick_ring_allocate(int(s), surface, nbr.data(), t->keys.data(), t->slots.data(), t->slot_keys.data(),
                            t->capacity, t->pool, t->counters);
+  OrderNewSlots(first, t);
 }
 
 void BrickLevelAllocate(const int32_t* list, size_t n, int s, uint32_t used, BrickTable* t) {
   const std::vector<int32_t> nbr = BrickNeighbours(*t, used);
+  const uint32_t first = Used(*t);
   for (size_t k = 0; k < n; ++k)
     vd_brick_level_allocate(list[k], s, nbr.data(), t->keys.data(), t->slots.data(), t->slot_keys.data(), t->capacity,
                             t->pool, t->counters);
+  OrderNewSlots(first, t);
 }
 
 ActiveSet SparseActiveSet(const BrickTable& t, uint32_t used, const uint16_t* codes, ActiveSet* solved) {

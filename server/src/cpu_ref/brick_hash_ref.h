@@ -1,6 +1,8 @@
 #pragma once
 // CPU reference of the brick table (server/kernels/brick_hash.cl): the same per-item functions of
-// shared/brick_hash.h looped on the host, in item order.
+// shared/brick_hash.h looped on the host, in item order. Each call that allocates puts the slots
+// it handed out in key order, as the device does (BrickTable::OrderNewSlots), so that slots compare
+// exactly while the pool has room.
 #include <cstdint>
 #include <vector>
 

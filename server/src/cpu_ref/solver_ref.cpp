@@ -5,6 +5,23 @@
 
 namespace vd::cpu {
 
+void SortConstraints(const VdCorrespondence* corr, const int* cell_of, int n, int m, std::vector<vd_uint>* cell_start,
+                     std::vector<VdCorrespondence>* sorted, std::vector<int>* sorted_cell) {
+  cell_start->assign(size_t(m) + 1, 0u);
+  for (int i = 0; i < n; ++i)
+    if (cell_of[i] >= 0) ++(*cell_start)[cell_of[i] + 1];
+  for (int k = 0; k < m; ++k) (*cell_start)[k + 1] += (*cell_start)[k];
+  const vd_uint total = (*cell_start)[m];
+  std::vector<int> order(total);
+  std::vector<vd_uint> cursor(cell_start->begin(), cell_start->end() - 1);
+  for (int i = 0; i < n; ++i)
+    if (cell_of[i] >= 0) order[cursor[cell_of[i]]++] = i;
+  sorted->resize(total);
+  sorted_cell->resize(total);
+  for (int k = 0; k < m; ++k)
+    vd_constraint_order_cell(k, corr, cell_start->data(), order.data(), sorted->data(), sorted_cell->data());
+}
+
 void CellMoments(VdActive a, const VdCorrespondence* cons, const vd_uint* cell_start, int m, float* moments) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k) vd_cell_moments(k, a, cons, cell_start, moments);

@@ -10,6 +10,12 @@
 
 namespace vd::cpu {
 
+// The counting sort of n constraints by cell (kernels vd_constraint_scatter, then
+// vd_constraint_order): cell_of[i] is constraint i's cell of m (-1: none). Gives cell_start (m + 1
+// entries, the last the total), the constraints in cell order (input order within a cell) and each
+// one's cell.
+void SortConstraints(const VdCorrespondence* corr, const int* cell_of, int n, int m, std::vector<vd_uint>* cell_start,
+                     std::vector<VdCorrespondence>* sorted, std::vector<int>* sorted_cell);
 // Moments of every cell with constraints (VD_CELL_MOMENT_FLOATS floats per active point; cells
 // without constraints are left as given), for m active points and constraints sorted by cell.
 void CellMoments(VdActive a, const VdCorrespondence* cons, const vd_uint* cell_start, int m, float* moments);

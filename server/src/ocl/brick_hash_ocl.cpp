@@ -34,15 +34,32 @@ Status BrickTable::Clear(Context& ctx) {
   VD_RETURN_IF_ERROR(ctx.Fill(stamp_, 0u, pool_));
   VD_RETURN_IF_ERROR(ctx.Fill(entry_stamp_, 0u, capacity_));
   frame_ = 0;
+  ordered_ = 0;
   return ctx.Fill(counters_, 0u, VD_BRICK_COUNTERS);
+}
+
+StatusOr<BrickCounts> BrickTable::OrderNewSlots(Context& ctx) {
+  VD_ASSIGN_OR_RETURN(const BrickCounts counts, Counts(ctx));
+  const uint32_t first = std::min(ordered_, counts.used), n = counts.used - first;
+  ordered_ = counts.used;
+  if (n < 2) return counts;
+  batch_keys_.resize(n);
+  VD_RETURN_IF_ERROR(ctx.Download(slot_keys_, batch_keys_.data(), n, first));
+  if (std::is_sorted(batch_keys_.begin(), batch_keys_.end())) return counts;
+  std::sort(batch_keys_.begin(), batch_keys_.end());
+  VD_RETURN_IF_ERROR(ctx.Upload(slot_keys_, batch_keys_.data(), n, first));
+  VD_RETURN_IF_ERROR(kBrickReslot(ctx, n, slot_keys_, int32_t(first), keys_, slots_, capacity_));
+  return counts;
 }
 
 Status BrickTable::AllocateFromDepth(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world,
                                      float truncation, float brick_size) {
   if (!(brick_size > 0.f) || !(truncation >= 0.f)) return InvalidArgument("brick size and truncation must be positive");
   if (depth.size() < size_t(cam.width) * cam.height) return InvalidArgument("depth buffer smaller than the camera");
-  return kBrickAllocDepth(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam, cam_to_world,
-                          truncation, brick_size, keys_, slots_, slot_keys_, capacity_, pool_, counters_);
+  VD_RETURN_IF_ERROR(kBrickAllocDepth(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam,
+                                      cam_to_world, truncation, brick_size, keys_, slots_, slot_keys_, capacity_,
+                                      pool_, counters_));
+  return OrderNewSlots(ctx).status();
 }
 
 Status BrickTable::ListVisible(Context& ctx, const Buffer<float>& depth, VdCamera cam, VdPose cam_to_world,
@@ -76,7 +93,8 @@ Status BrickTable::AllocateAndList(Context& ctx, const Buffer<float>& depth, VdC
   VD_RETURN_IF_ERROR(kBrickAllocList(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam,
                                      cam_to_world, truncation, brick_size, keys_, slots_, slot_keys_, capacity_, pool_,
                                      entry_stamp_, frame_, visible_, counters_));
-  VD_ASSIGN_OR_RETURN(const BrickCounts counts, Counts(ctx));
+  // Listed as table entries: the second pass reads their slots after the batch is ordered.
+  VD_ASSIGN_OR_RETURN(const BrickCounts counts, OrderNewSlots(ctx));
   return kBrickEntrySlots(ctx, counts.visible, visible_, slots_, stamp_, frame_, counters_);
 }
 
@@ -88,13 +106,14 @@ StatusOr<uint32_t> BrickTable::AllocateRing(Context& ctx, const Buffer<uint8_t>&
     return FailedPrecondition("AllocateRing needs the surface flags and the neighbours of every brick in use");
   VD_RETURN_IF_ERROR(
       kBrickRingAlloc(ctx, before.used, surface, neighbours_, keys_, slots_, slot_keys_, capacity_, pool_, counters_));
-  VD_ASSIGN_OR_RETURN(const BrickCounts after, Counts(ctx));
+  VD_ASSIGN_OR_RETURN(const BrickCounts after, OrderNewSlots(ctx));
   return after.used - before.used;
 }
 
 Status BrickTable::Insert(Context& ctx, const Buffer<uint32_t>& keys, size_t n) {
   if (keys.size() < n) return InvalidArgument("fewer keys than asked to insert");
-  return kBrickInsertKeys(ctx, n, keys, keys_, slots_, slot_keys_, capacity_, pool_, counters_);
+  VD_RETURN_IF_ERROR(kBrickInsertKeys(ctx, n, keys, keys_, slots_, slot_keys_, capacity_, pool_, counters_));
+  return OrderNewSlots(ctx).status();
 }
 
 Status BrickTable::Restore(Context& ctx, const Buffer<uint32_t>& keys, size_t n) {
@@ -106,6 +125,7 @@ Status BrickTable::Restore(Context& ctx, const Buffer<uint32_t>& keys, size_t n)
   VD_RETURN_IF_ERROR(kBrickRestore(ctx, n, keys, keys_, slots_, slot_keys_, capacity_, counters_));
   const uint32_t taken = uint32_t(n);
   VD_RETURN_IF_ERROR(ctx.Upload(counters_, &taken, 1, VD_BRICK_COUNT_TAKEN));
+  ordered_ = taken;  // the slots are the saved ones
   VD_ASSIGN_OR_RETURN(const BrickCounts counts, Counts(ctx));
   if (counts.failed > 0) {
     const Status cleared = Clear(ctx);
@@ -146,6 +166,7 @@ Status BrickTable::Compact(DeviceOps& ops, const Buffer<uint32_t>& keep, BrickPo
   std::swap(slots_, new_slots_);
   std::swap(slot_keys_, new_slot_keys_);
   std::swap(stamp_, new_stamp_);
+  ordered_ = kept;
   // Entries moved: their stamps mean nothing now.
   VD_RETURN_IF_ERROR(ctx.Fill(entry_stamp_, 0u, capacity_));
   if (pool && before.used > 0) {

@@ -43,6 +43,10 @@ inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<int32_
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, Buffer<uint32_t>& keys, Buffer<int32_t>& slots,
                              Buffer<uint32_t>& slot_keys, uint32_t capacity, Buffer<uint32_t>& counters)>
     kBrickRestore{"vd_brick_table_restore"};
+// One item per slot of the batch from `first`.
+inline constexpr Kernel<void(const Buffer<uint32_t>& slot_keys, int32_t first, const Buffer<uint32_t>& keys,
+                             Buffer<int32_t>& slots, uint32_t capacity)>
+    kBrickReslot{"vd_brick_table_reslot"};
 // One item per key looked up.
 inline constexpr Kernel<void(const Buffer<uint32_t>& in, const Buffer<uint32_t>& keys, const Buffer<int32_t>& slots,
                              uint32_t capacity, Buffer<int32_t>& out)>
@@ -194,7 +198,15 @@ class BrickTable {
   StatusOr<uint32_t> AllocateLevelCorners(Context& ctx, const DeviceActiveSet& fine, int s);
 
  private:
+  // Puts the slots handed out since the last call (a batch of inserts) in key order, their table
+  // entries with them, and returns the counts. The inserts' atomics hand out slots in whatever
+  // order the work-items ran; every later pass runs in slot order (the active set, the solver's
+  // sums), so without this no two runs would be the same. Every method that allocates calls it.
+  StatusOr<BrickCounts> OrderNewSlots(Context& ctx);
   uint32_t capacity_ = 0, pool_ = 0;
+  // Slots [0, ordered_) are in order (OrderNewSlots); the host's copy of a new batch's keys.
+  uint32_t ordered_ = 0;
+  std::vector<uint32_t> batch_keys_;
   // The frame number ListVisible stamps slots with (0: never listed).
   uint32_t frame_ = 0;
   Buffer<uint32_t> keys_, slot_keys_, counters_, stamp_;

@@ -20,7 +20,7 @@ StatusOr<uint32_t> BrickTable::AllocateLevelCorners(Context& ctx, const DeviceAc
     return FailedPrecondition("AllocateLevelCorners needs the neighbours of every brick in use");
   VD_RETURN_IF_ERROR(kBrickLevelAlloc(ctx, fine.count, fine.list, s, neighbours_, keys_, slots_, slot_keys_, capacity_,
                                       pool_, counters_));
-  VD_ASSIGN_OR_RETURN(const BrickCounts after, Counts(ctx));
+  VD_ASSIGN_OR_RETURN(const BrickCounts after, OrderNewSlots(ctx));
   return after.used - before.used;
 }
 

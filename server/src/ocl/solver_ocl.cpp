@@ -40,10 +40,12 @@ Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& 
   return CountConstraints(ctx, n, corr, *L.table, a.compact, cell_of, counts);
 }
 
-Status SortConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& cell_of,
-                       const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor, Buffer<VdCorrespondence>& sorted,
-                       Buffer<int32_t>& sorted_cell) {
-  return kConstraintScatter(ctx, n, corr, cell_of, cell_start, cursor, sorted, sorted_cell);
+Status SortConstraints(Context& ctx, size_t n, size_t m, const Buffer<VdCorrespondence>& corr,
+                       const Buffer<int32_t>& cell_of, const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor,
+                       Buffer<int32_t>& order, Buffer<VdCorrespondence>& sorted, Buffer<int32_t>& sorted_cell) {
+  if (m == 0) return Status::Ok();
+  VD_RETURN_IF_ERROR(kConstraintScatter(ctx, n, cell_of, cell_start, cursor, order));
+  return kConstraintOrder(ctx, m, corr, cell_start, order, sorted, sorted_cell);
 }
 
 Status ConstraintTargets(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, Buffer<float>& targets) {

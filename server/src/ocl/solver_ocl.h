@@ -27,10 +27,13 @@ inline constexpr Kernel<void(const Buffer<VdCorrespondence>& corr, const Buffer<
                              Buffer<int32_t>& cell_of,
                              Buffer<uint32_t>& counts)> kConstraintCount{"vd_constraint_count"};
 // One item per per-pixel constraint.
-inline constexpr Kernel<void(const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& cell_of,
-                             const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor,
-                             Buffer<VdCorrespondence>& sorted, Buffer<int32_t>& sorted_cell)>
+inline constexpr Kernel<void(const Buffer<int32_t>& cell_of, const Buffer<uint32_t>& cell_start,
+                             Buffer<uint32_t>& cursor, Buffer<int32_t>& order)>
     kConstraintScatter{"vd_constraint_scatter"};
+// One item per cell.
+inline constexpr Kernel<void(const Buffer<VdCorrespondence>& corr, const Buffer<uint32_t>& cell_start,
+                             Buffer<int32_t>& order, Buffer<VdCorrespondence>& sorted, Buffer<int32_t>& sorted_cell)>
+    kConstraintOrder{"vd_constraint_order"};
 // One item per sorted constraint.
 inline constexpr Kernel<void(const Buffer<VdCorrespondence>& cons,
                              Buffer<float>& targets)> kConstraintTargets{"vd_constraint_targets"};
@@ -129,11 +132,14 @@ Status RestPositions(Context& ctx, const DeviceLattice& L, const DeviceActiveSet
 // the table's hash, BrickTable's CountConstraints).
 Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const DeviceLattice& L,
                         const DeviceActiveSet& a, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts);
-// Second half, after the counts' scan into cell_start: the constraints in cell order, and each
-// one's cell (the compact index of its first corner).
-Status SortConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& cell_of,
-                       const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor, Buffer<VdCorrespondence>& sorted,
-                       Buffer<int32_t>& sorted_cell);
+// Second half, after the counts' scan of the m cells into cell_start (m + 1 entries, the last the
+// total): the constraints in cell order, and each one's cell (the compact index of its first
+// corner). Within a cell they keep their input order, as a sequential counting sort would (and
+// cpu::SortConstraints does), so runs repeat exactly. cursor: m zeros; order: scratch, one per
+// sorted constraint.
+Status SortConstraints(Context& ctx, size_t n, size_t m, const Buffer<VdCorrespondence>& corr,
+                       const Buffer<int32_t>& cell_of, const Buffer<uint32_t>& cell_start, Buffer<uint32_t>& cursor,
+                       Buffer<int32_t>& order, Buffer<VdCorrespondence>& sorted, Buffer<int32_t>& sorted_cell);
 // Each sorted constraint's target term, fixed per solve.
 Status ConstraintTargets(Context& ctx, size_t n, const Buffer<VdCorrespondence>& cons, Buffer<float>& targets);
 // The constraint-only part of b and the Jacobi preconditioner, fixed per solve.
