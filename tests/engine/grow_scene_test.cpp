@@ -105,9 +105,11 @@ TEST(GrowSceneTest, AFullPoolDropsTheSurfaceThatLeftTheViewAndKeepsTheViewCovere
   EXPECT_GE(c.evicted, 300);
   EXPECT_LT(c.evicted, all.most_used / 2);
   // Dropping what left the view costs the view (nearly) nothing. The slide, seen only by the
-  // features, leaves the reference at 97-98 % of the strip in view and 92.6-95.1 % of the end that
-  // entered, each run varying by up to 2-3 points (the 32 MB pool: 96.5-98.0 % and 91.4-95.1 %), so
-  // two runs may differ by that much; losing part of the view would cost far more.
+  // features, leaves the reference at 97.1 % of the strip in view and 92.8 % of the end that
+  // entered (the 32 MB pool: 98.4 % and 96.0-96.2 %, 598 dropped; runs repeat but for the full
+  // pool's race for its last slots, docs/ARCHITECTURE.md). Other builds and devices round
+  // differently, and the take is chaotic enough to turn that into 2-3 points (before runs
+  // repeated: 96.5-98.0 % and 91.4-95.1 %); losing part of the view would cost far more.
   EXPECT_GE(c.in_view, all.in_view - 0.03);
   EXPECT_GE(c.entered, all.entered - 0.05);
   EXPECT_GE(c.in_view, 0.94);
