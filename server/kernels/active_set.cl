@@ -30,6 +30,15 @@ __kernel void vd_active_surface(__global const ushort* codes, __global const uch
   row_surface[yz] = n;
 }
 
+/* One work item per row of row_len points (a dense grid row, or 8 points of a brick). */
+__kernel void vd_active_in_view(__global const uchar* surface, __global const uint* row_surface,
+                                __global const float4* def_pos, int row_len, VdCamera cam, VdPose world_to_cam,
+                                float margin, __global uchar* solved, __global uint* row_solved, int vd_items) {
+  int r = get_global_id(0);
+  if (r >= vd_items) return;
+  row_solved[r] = vd_active_in_view_row(r, row_len, surface, row_surface, def_pos, cam, world_to_cam, margin, solved);
+}
+
 __kernel void vd_active_dilate(__global const uchar* surface, __global const uint* row_surface, VdVolume vol,
                                __global uchar* member, __global uint* row_count, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;

@@ -153,6 +153,60 @@ TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesC
 // After a solve over M's surface points, the ring follows them: under a rigid motion of the solved
 // points every ring point lands on that motion and counts the solve; the solved points are not
 // touched; device against CPU on a sphere's real active set.
+// A solve limited to the view (EngineParams::solve_view_margin) takes the surface points whose field
+// position is in it, as the CPU does: on a sphere half out of the image, about half of them.
+TEST(DeformationParityTest, ASolveLimitedToTheViewTakesTheSurfacePointsInItAndMatchesCpu) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  test::AnalyticVolume sphere = test::MakeSphereVolume(
+      test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f, 0.08f);
+  const VdVolume& vol = sphere.vol;
+  const size_t n = sphere.tsdf.size();
+  const cpu::McMesh mesh = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), vol);
+  cpu::ActiveSet all;
+  cpu::BuildActiveSet(mesh.codes.data(), vol, &all);
+  std::vector<uint8_t> surface(n, 0);
+  for (int i : all.list) surface[i] = 1;
+  std::vector<vd_float4> pos(n), rot(n);
+  cpu::DeformationReset(pos.data(), rot.data(), vol);
+  // The sphere's centre projects to u = 161 of 160 columns: its right half is out of view.
+  SolveView view;
+  view.cam.fx = view.cam.fy = 200.f;
+  view.cam.cx = 80.f;
+  view.cam.cy = 60.f;
+  view.cam.width = 160;
+  view.cam.height = 120;
+  view.world_to_cam.r0 = VD_F4(1.f, 0.f, 0.f, 0.2f);
+  view.world_to_cam.r1 = VD_F4(0.f, 1.f, 0.f, 0.f);
+  view.world_to_cam.r2 = VD_F4(0.f, 0.f, 1.f, 0.f);
+  view.margin = 0.02f;
+  const std::vector<uint8_t> in_view =
+      cpu::ActiveInView(surface, pos.data(), vol.dim_x, view.cam, view.world_to_cam, view.margin);
+  std::vector<int32_t> want;
+  for (size_t i = 0; i < n; ++i)
+    if (in_view[i]) want.push_back(int32_t(i));
+  std::printf("%zu of %zu surface points in view\n", want.size(), all.list.size());
+  ASSERT_GT(want.size(), all.list.size() / 4);
+  ASSERT_LT(want.size(), all.list.size() * 3 / 4);
+
+  DeviceVolume dv;
+  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
+  ASSERT_TRUE(ctx->Upload(dv.tsdf, sphere.tsdf.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.weight, sphere.weight.data(), n).ok());
+  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
+  ASSERT_TRUE(ops.MarkTouched(dv).ok());
+  DeviceMesh dm;
+  ASSERT_TRUE(ops.MarchingCubes(dv, &dm).ok());
+  DeviceActiveSet active, solved;
+  ASSERT_TRUE(ops.BuildActiveSet(dv, &active, &solved, &view).ok());
+  ASSERT_EQ(solved.count, want.size());
+  EXPECT_EQ(test::FromDevice(ctx, solved.list, solved.count), want);
+  // M itself does not change with the view.
+  ASSERT_TRUE(ops.BuildActiveSet(dv, &active, &solved).ok());
+  EXPECT_EQ(solved.count, all.list.size());
+}
+
 TEST(DeformationParityTest, RingPointsFollowTheSolvedSurfaceAndMatchCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);

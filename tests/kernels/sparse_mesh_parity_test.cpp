@@ -258,6 +258,33 @@ TEST_F(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
   EXPECT_TRUE(sparse_members.empty()) << sparse_members.size() << " members the dense grid does not have";
   EXPECT_LE(only_dense - unallocated, 8u * 7u);
   EXPECT_LT(only_dense, da.list.size() / 50);
+
+  // Limited to a view that sees the left part of the scene (the camera moved 0.6 m to the left),
+  // with the field at rest: the surface points in it, as the CPU finds them.
+  std::vector<vd_float4> rest(n), rest_rot(n);
+  for (size_t i = 0; i < n; ++i) vd_pool_field_rest(ref.slot_keys.data(), int(i), f.vol.voxel_size, rest.data(), rest_rot.data());
+  const ocl::Buffer<vd_float4> d_rest = test::ToDevice(ctx, rest);
+  SolveView view;
+  view.cam = f.cam;
+  view.world_to_cam = f.world_to_cam;
+  view.world_to_cam.r0.w += 0.6f;
+  view.margin = 0.f;
+  std::vector<uint8_t> surface(n, 0);
+  for (int32_t v : cs.list) surface[v] = 1;
+  const std::vector<uint8_t> in_view =
+      cpu::ActiveInView(surface, rest.data(), VD_BRICK, view.cam, view.world_to_cam, view.margin);
+  std::vector<int32_t> want;
+  for (size_t v = 0; v < n; ++v)
+    if (in_view[v]) want.push_back(int32_t(v));
+  ASSERT_GT(want.size(), cs.list.size() / 4);
+  ASSERT_LT(want.size(), cs.list.size() * 3 / 4);
+  DeviceActiveSet active_v, solved_v;
+  ASSERT_TRUE(ops.BuildActiveSet(*f.table, &active_v, &solved_v, &view, &d_rest).ok());
+  EXPECT_EQ(active_v.count, m);
+  ASSERT_EQ(solved_v.count, want.size());
+  EXPECT_EQ(test::FromDevice(ctx, solved_v.list, solved_v.count), want);
+  // A view without the field is refused.
+  EXPECT_FALSE(ops.BuildActiveSet(*f.table, &active_v, &solved_v, &view).ok());
 }
 
 // The field on the pool: extrapolation of the active points never optimised and the deformed mesh,

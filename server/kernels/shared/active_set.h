@@ -20,6 +20,33 @@ VD_INLINE vd_uchar vd_active_surface_point(VD_GLOBAL const vd_ushort* codes, VD_
   return 0;
 }
 
+/* Whether a point at p (world metres) lies in front of the camera and projects into its image
+ * widened by `margin` times the image's size on each side: the solver's points are limited to the
+ * view (EngineParams::solve_view_margin). */
+VD_INLINE int vd_point_in_view(vd_float4 p, VdCamera cam, VdPose world_to_cam, float margin) {
+  vd_float4 c = vd_pose_apply(world_to_cam, p);
+  if (!(c.z > 1e-3f)) return 0;
+  float u = cam.fx * c.x / c.z + cam.cx, v = cam.fy * c.y / c.z + cam.cy;
+  float mu = margin * (float)cam.width, mv = margin * (float)cam.height;
+  return u >= -mu && u <= (float)cam.width + mu && v >= -mv && v <= (float)cam.height + mv;
+}
+
+/* Row r (row_len points from r * row_len, a dense grid row or 8 points of a brick) of the solved
+ * flags: the surface points in view. Returns the row's count. */
+VD_INLINE vd_uint vd_active_in_view_row(int r, int row_len, VD_GLOBAL const vd_uchar* surface,
+                                        VD_GLOBAL const vd_uint* row_surface, VD_GLOBAL const vd_float4* def_pos,
+                                        VdCamera cam, VdPose world_to_cam, float margin, VD_GLOBAL vd_uchar* solved) {
+  vd_uint n = 0u;
+  int skip = row_surface[r] == 0u;
+  for (int x = 0; x < row_len; ++x) {
+    int v = r * row_len + x;
+    vd_uchar s = (vd_uchar)(!skip && surface[v] && vd_point_in_view(def_pos[v], cam, world_to_cam, margin));
+    solved[v] = s;
+    n += s;
+  }
+  return n;
+}
+
 /* Whether grid row (y, z) or one of its 4 neighbouring rows holds a surface point. */
 VD_INLINE int vd_active_row_near_surface(VD_GLOBAL const vd_uint* row_surface, VdVolume vol, int y, int z) {
   int yz = y + vol.dim_y * z;

@@ -144,6 +144,9 @@ void EngineParams::Bind(FlagParser* f) {
   f->Section("Non-rigid tracking (sections 5-7)");
   f->Add("outer-iterations", &nonrigid_outer_iterations,
          "Non-rigid outer iterations per frame (new correspondences each; 0 = rigid tracking with the field kept)");
+  f->Add("solve-view-margin", &solve_view_margin,
+         "Solve only for the surface points in the view widened by this fraction of the image on each side "
+         "(negative = all of them)");
   f->Add("corr-eps-d", &corr_eps_d, "Dense correspondences farther apart than this are rejected, metres");
   f->Add("corr-eps-n", &corr_eps_n, "Dense correspondences whose normals deviate more (1 - cos) are rejected");
   f->Add("corr-eps-v", &corr_eps_v, "Dense correspondences seen more obliquely (1 - cos) are rejected");
@@ -177,6 +180,8 @@ Status EngineParams::Validate() const {
     return ParamOutOfBounds("EngineParams", "min_inlier_fraction", min_inlier_fraction, "0 <= f < 1");
   if (!(max_frame_translation > 0.f)) return ParamOutOfBounds("EngineParams", "max_frame_translation", max_frame_translation, "> 0");
   if (!(max_frame_rotation_deg > 0.f)) return ParamOutOfBounds("EngineParams", "max_frame_rotation_deg", max_frame_rotation_deg, "> 0");
+  if (!(solve_view_margin <= 10.f))
+    return ParamOutOfBounds("EngineParams", "solve_view_margin", solve_view_margin, "margin <= 10 (negative = off)");
   if (!(nonrigid_outer_iterations >= 0 && nonrigid_outer_iterations <= 20))
     return ParamOutOfBounds("EngineParams", "nonrigid_outer_iterations", nonrigid_outer_iterations, "0 <= n <= 20");
   if (!(corr_eps_d > 0.f && corr_eps_n > 0.f && corr_eps_n <= 2.f && corr_eps_v > 0.f && corr_eps_v <= 2.f))
@@ -901,7 +906,8 @@ Status Engine::NonRigid(FrameResult* result) {
     VD_RETURN_IF_ERROR(
         solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, solved_));
   } else {
-    VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_, &solved_));
+    const std::optional<SolveView> view = ViewToSolve();
+    VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_, &solved_, view ? &*view : nullptr));
     VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
     VD_RETURN_IF_ERROR(solver_->Prepare(volume_, solved_));
   }
@@ -1175,7 +1181,21 @@ Status Engine::RefreshBricks(uint32_t used_before, FrameResult* result) {
   // The surface's cells and M again, over the new bricks too (marching cubes rebuilds the
   // neighbour table; the new bricks are empty, so the mesh is the same).
   VD_RETURN_IF_ERROR(ops_.MarchingCubes(*bricks_, *pool_, &mesh_));
-  return ops_.BuildActiveSet(*bricks_, &active_, &solved_);
+  return BuildBrickActiveSet();
+}
+
+std::optional<SolveView> Engine::ViewToSolve() const {
+  if (params_.solve_view_margin < 0.f) return std::nullopt;
+  SolveView view;
+  view.cam = cam_;
+  view.world_to_cam = ToVdPose(pose_.inverse());
+  view.margin = params_.solve_view_margin;
+  return view;
+}
+
+Status Engine::BuildBrickActiveSet() {
+  const std::optional<SolveView> view = ViewToSolve();
+  return ops_.BuildActiveSet(*bricks_, &active_, &solved_, view ? &*view : nullptr, &pool_->def_pos);
 }
 
 Status Engine::GrowBricks(const RgbdFrame& frame, FrameResult* result) {
@@ -1257,7 +1277,7 @@ void Engine::NoteEviction(uint32_t dropped, FrameResult* result) {
 Status Engine::PrepareBricks(FrameResult* result) {
   result->bricks_used = bricks_in_use_;
   result->bricks_pool = bricks_->pool();
-  VD_RETURN_IF_ERROR(ops_.BuildActiveSet(*bricks_, &active_, &solved_));
+  VD_RETURN_IF_ERROR(BuildBrickActiveSet());
   // The one-ring of the surface where its brick is missing, then the corners of every coarse
   // level's cells (the coarsest's bricks hold the finer ones'): each found once, so after the first
   // frames of a region both add nothing and cost a count.

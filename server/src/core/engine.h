@@ -84,6 +84,12 @@ struct EngineParams {
   // Non-rigid tracking: outer iterations (re-rendering and new correspondences) per frame. With
   // the coarse-to-fine solver one reaches the quality two did on one level at half the time.
   int nonrigid_outer_iterations = 1;
+  // The solve's points are limited to the surface points whose deformed position is in the frame's
+  // view widened by this fraction of the image on each side; the others keep their field (ring
+  // points beside the solved ones still follow them). Points out of view have no data term, only
+  // the regulariser. In a room most of the surface is out of view, and solving it costs memory and
+  // time in proportion (docs/BENCHMARKS.md "Session 27"). Negative: solve all of M's surface.
+  float solve_view_margin = -1.f;
   // Correspondence kernels (section 5.1): distance (m), normal deviation and view (1 - cos).
   float corr_eps_d = 0.02f;
   float corr_eps_n = 0.5f;
@@ -346,6 +352,10 @@ class Engine {
   // The non-rigid solve's active set on the bricks: M, its one-ring and the coarse levels' corners
   // allocated, the field of new members extrapolated.
   Status PrepareBricks(FrameResult* result);
+  // The view the solve is limited to this frame (EngineParams::solve_view_margin), if any.
+  std::optional<SolveView> ViewToSolve() const;
+  // M and the solver's points on the bricks (DeviceOps::BuildActiveSet with the view).
+  Status BuildBrickActiveSet();
   // Depth the live model does not explain gets bricks (core/growth.h), their field started at the
   // nearest rendered surface's motion, and is fused into them once through it.
   Status GrowBricks(const RgbdFrame& frame, FrameResult* result);

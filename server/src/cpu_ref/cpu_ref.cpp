@@ -143,6 +143,19 @@ McMesh MarchingCubes(const float* tsdf, const float* weight, const uint32_t* col
   return mesh;
 }
 
+std::vector<uint8_t> ActiveInView(const std::vector<uint8_t>& surface, const vd_float4* def_pos, int row_len,
+                                  VdCamera cam, VdPose world_to_cam, float margin) {
+  const int rows = int(surface.size() / size_t(row_len));
+  std::vector<vd_uint> row_surface(rows, 0u);
+  for (int r = 0; r < rows; ++r)
+    for (int x = 0; x < row_len; ++x) row_surface[r] += surface[size_t(r) * row_len + x];
+  std::vector<uint8_t> solved(surface.size(), 0);
+  for (int r = 0; r < rows; ++r)
+    vd_active_in_view_row(r, row_len, surface.data(), row_surface.data(), def_pos, cam, world_to_cam, margin,
+                          solved.data());
+  return solved;
+}
+
 void Follow(const int* list, int n, const uint8_t* surface, vd_float4* def_pos, vd_float4* def_rot, VdVolume vol) {
   std::vector<vd_float4> pos(n), rot(n);
 #pragma omp parallel for schedule(static)

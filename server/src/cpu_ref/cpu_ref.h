@@ -47,6 +47,11 @@ void DeformVertices(const vd_float4* grid_pos, int n, const vd_float4* def_pos, 
 void Extrapolate(const int* list, int n, vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
 // The ring points of M (list, surface 0) follow their solved neighbours (vd_follow_point).
 void Follow(const int* list, int n, const uint8_t* surface, vd_float4* def_pos, vd_float4* def_rot, VdVolume vol);
+// The surface points (one flag per point, rows of row_len points) whose field position def_pos is
+// in the view (kernel vd_active_in_view, shared/active_set.h vd_point_in_view): the solver's points
+// of a solve limited to the view.
+std::vector<uint8_t> ActiveInView(const std::vector<uint8_t>& surface, const vd_float4* def_pos, int row_len,
+                                  VdCamera cam, VdPose world_to_cam, float margin);
 
 struct McMesh {
   // Vertex positions in grid units (x + t, y, z): cell and trilinear weights are implicit.

@@ -7,7 +7,8 @@
 
 namespace vd {
 
-Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out, DeviceActiveSet* solved) {
+Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out, DeviceActiveSet* solved,
+                                 const SolveView* view) {
   const size_t n = v.num_voxels(), rows = v.num_rows();
   if (mc_codes_.size() < n) return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on this grid");
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_surface_, n));
@@ -20,8 +21,17 @@ Status DeviceOps::BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out, De
   VD_RETURN_IF_ERROR(
       ocl::kActiveDilate(*ctx_, rows, active_surface_, active_row_surface_, v.vol, active_member_, active_row_count_));
   VD_RETURN_IF_ERROR(CompactActiveSet(v.vol, active_member_, active_row_count_, out));
-  if (solved) VD_RETURN_IF_ERROR(CompactActiveSet(v.vol, active_surface_, active_row_surface_, solved));
-  return Status::Ok();
+  solved_in_view_ = false;
+  if (!solved) return Status::Ok();
+  if (!view) return CompactActiveSet(v.vol, active_surface_, active_row_surface_, solved);
+  if (v.def_pos.size() < n) return FailedPrecondition("a solve limited to the view needs the grid's field");
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_in_view_, n));
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_in_view_, rows));
+  VD_RETURN_IF_ERROR(ocl::kActiveInView(*ctx_, rows, active_surface_, active_row_surface_, v.def_pos, v.vol.dim_x,
+                                        view->cam, view->world_to_cam, view->margin, active_in_view_,
+                                        active_row_in_view_));
+  solved_in_view_ = true;
+  return CompactActiveSet(v.vol, active_in_view_, active_row_in_view_, solved);
 }
 
 Status DeviceOps::CompactActiveSet(const VdVolume& vol, const ocl::Buffer<uint8_t>& member,

@@ -18,6 +18,11 @@ inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint8_t
                              const Buffer<uint32_t>& row_tris, const Buffer<uint8_t>& chunk_tris, VdVolume vol,
                              Buffer<uint8_t>& surface, Buffer<uint32_t>& row_surface)>
     kActiveSurface{"vd_active_surface"};
+// One item per row of row_len points (a dense grid row, or 8 points of a brick).
+inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<uint32_t>& row_surface,
+                             const Buffer<vd_float4>& def_pos, int32_t row_len, VdCamera cam, VdPose world_to_cam,
+                             float margin, Buffer<uint8_t>& solved, Buffer<uint32_t>& row_solved)>
+    kActiveInView{"vd_active_in_view"};
 // One item per grid row.
 inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<uint32_t>& row_surface, VdVolume vol,
                              Buffer<uint8_t>& member, Buffer<uint32_t>& row_count)> kActiveDilate{"vd_active_dilate"};

@@ -49,7 +49,7 @@ Status DeviceOps::Follow(DeviceVolume& v, const DeviceActiveSet& active) {
   if (!v.has_deformation()) return FailedPrecondition("Follow needs a deformation field");
   if (active.count == 0) return Status::Ok();
   if (active_surface_.size() < v.num_voxels()) return FailedPrecondition("Follow needs a BuildActiveSet on this grid");
-  return ocl::kFollow(*ctx_, active.count, active.list, active_surface_, v.def_pos, v.def_rot, v.vol);
+  return ocl::kFollow(*ctx_, active.count, active.list, SolvedFlags(), v.def_pos, v.def_rot, v.vol);
 }
 
 }  // namespace vd

@@ -116,6 +116,14 @@ struct DeviceField {
   bool valid() const { return def_pos != nullptr && def_pos->size() > 0; }
 };
 
+// The view the solver's points are limited to (EngineParams::solve_view_margin): the frame's
+// camera at its pose, widened by `margin` times the image's size on each side.
+struct SolveView {
+  VdCamera cam{};
+  VdPose world_to_cam{};
+  float margin = 0.f;
+};
+
 class DeviceOps {
  public:
   explicit DeviceOps(ocl::Context* ctx) : ctx_(ctx) {}
@@ -195,11 +203,15 @@ class DeviceOps {
   // The same over a sparse volume's M (the last BuildActiveSet(table, ...) with `solved`).
   Status Follow(const ocl::BrickTable& table, ocl::BrickPool& pool, const DeviceActiveSet& active, float voxel_size);
   // M from the cell codes of the last MarchingCubes() call on v; with `solved`, also the set of its
-  // surface points alone (the corners of cells with triangles: the solver's unknowns).
-  Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out, DeviceActiveSet* solved = nullptr);
+  // surface points alone (the corners of cells with triangles: the solver's unknowns), and with
+  // `view` only those of them whose deformed position is in that view (vd_point_in_view).
+  Status BuildActiveSet(const DeviceVolume& v, DeviceActiveSet* out, DeviceActiveSet* solved = nullptr,
+                        const SolveView* view = nullptr);
   // M over a sparse volume from the last MarchingCubes() call on its bricks: list and compact hold
-  // pool voxel indices (slot * 512 + local) for grid indices.
-  Status BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out, DeviceActiveSet* solved = nullptr);
+  // pool voxel indices (slot * 512 + local) for grid indices. def_pos: the pool's field (read with
+  // `view` only).
+  Status BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out, DeviceActiveSet* solved = nullptr,
+                        const SolveView* view = nullptr, const ocl::Buffer<vd_float4>* def_pos = nullptr);
   // Bricks for the one-ring of the surface the last BuildActiveSet(table, ...) found, where their
   // brick is missing (BrickTable::AllocateRing); how many were added (0: M is whole).
   StatusOr<uint32_t> AllocateActiveRing(ocl::BrickTable& table);
@@ -254,6 +266,13 @@ class DeviceOps {
   ocl::Buffer<uint32_t> active_row_count_;
   // Surface points per grid row, so the dilation skips rows far from any.
   ocl::Buffer<uint32_t> active_row_surface_;
+  // With a SolveView: the surface points in it and their per-row counts; solved_in_view_ says
+  // whether the last build's solved set came from them (else from active_surface_).
+  ocl::Buffer<uint8_t> active_in_view_;
+  ocl::Buffer<uint32_t> active_row_in_view_;
+  bool solved_in_view_ = false;
+  // The flags of the last build's solved set (what Follow's ring follows).
+  const ocl::Buffer<uint8_t>& SolvedFlags() const { return solved_in_view_ ? active_in_view_ : active_surface_; }
   ocl::Buffer<uint32_t> active_row_offset_;
   std::vector<float> icp_host_;
   // Brick integration scratch: per-brick flags of the current frame, their scan, the list.

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 
+#include "ocl/active_set_ocl.h"
 #include "ocl/brick_hash_ocl.h"
 #include "ocl/deformation_ocl.h"
 #include "ocl/device_ops.h"
@@ -35,13 +36,17 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
                                  mc_vert_offset_, nbr, mesh->triangles);
 }
 
-Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out, DeviceActiveSet* solved) {
+Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out, DeviceActiveSet* solved,
+                                 const SolveView* view, const ocl::Buffer<vd_float4>* def_pos) {
   VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, table.Counts(*ctx_));
   const size_t n = size_t(counts.used) * VD_BRICK_VOXELS, rows = size_t(counts.used) * VD_BRICK_ROWS;
   if (mc_codes_.size() < n || table.neighbours().size() < size_t(VD_BRICK_NEIGHBOURS) * counts.used)
     return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on these bricks");
   out->count = 0;
   out->kept = VdVolume{};
+  solved_in_view_ = false;
+  if (view && (!def_pos || def_pos->size() < n))
+    return FailedPrecondition("a solve limited to the view needs the pool's field");
   if (solved) {
     solved->count = 0;
     solved->kept = VdVolume{};
@@ -66,9 +71,17 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_surface_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&solved->compact, n));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveRows(*ctx_, rows, active_surface_, active_row_surface_));
-  VD_RETURN_IF_ERROR(SizeActiveSet(rows, active_row_surface_, solved));
+  if (view) {
+    VD_RETURN_IF_ERROR(ctx_->Reserve(&active_in_view_, n));
+    VD_RETURN_IF_ERROR(ctx_->Reserve(&active_row_in_view_, rows));
+    VD_RETURN_IF_ERROR(ocl::kActiveInView(*ctx_, rows, active_surface_, active_row_surface_, *def_pos, VD_BRICK,
+                                          view->cam, view->world_to_cam, view->margin, active_in_view_,
+                                          active_row_in_view_));
+    solved_in_view_ = true;
+  }
+  VD_RETURN_IF_ERROR(SizeActiveSet(rows, view ? active_row_in_view_ : active_row_surface_, solved));
   VD_RETURN_IF_ERROR(
-      ocl::kSparseActiveCompact(*ctx_, rows, active_surface_, active_row_offset_, solved->list, solved->compact));
+      ocl::kSparseActiveCompact(*ctx_, rows, SolvedFlags(), active_row_offset_, solved->list, solved->compact));
   return ocl::kSparseActiveNeighbours(*ctx_, solved->count, solved->list, solved->compact, nbr, solved->neighbours);
 }
 
@@ -77,7 +90,7 @@ Status DeviceOps::Follow(const ocl::BrickTable& table, ocl::BrickPool& pool, con
   if (!pool.with_field) return FailedPrecondition("Follow needs a brick pool with a deformation field");
   if (active.count == 0) return Status::Ok();
   if (active_surface_.size() == 0) return FailedPrecondition("Follow needs a BuildActiveSet on these bricks");
-  return ocl::kSparseFollow(*ctx_, active.count, active.list, active_surface_, table.neighbours(), pool.def_pos,
+  return ocl::kSparseFollow(*ctx_, active.count, active.list, SolvedFlags(), table.neighbours(), pool.def_pos,
                             pool.def_rot, voxel_size);
 }
 
