@@ -150,24 +150,35 @@ TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesC
   EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 0.f, 0.f));
 }
 
-// After a solve over M's surface points, the ring follows them: under a rigid motion of the solved
-// points every ring point lands on that motion and counts the solve; the solved points are not
-// touched; device against CPU on a sphere's real active set.
+// The sphere the tests of M's surface take M from (radius 8 voxels in a 32 x 30 x 28 grid): its CPU
+// mesh, M, M's surface points (the solver's) and their flags.
+struct SphereScene {
+  test::AnalyticVolume sphere = test::MakeSphereVolume(
+      test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f, 0.08f);
+  cpu::McMesh mesh =
+      cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), sphere.vol);
+  cpu::ActiveSet solved;
+  cpu::ActiveSet m = cpu::BuildActiveSet(mesh.codes.data(), sphere.vol, &solved);
+  std::vector<uint8_t> surface = Flags(solved.list, sphere.tsdf.size());
+  static std::vector<uint8_t> Flags(const std::vector<int>& list, size_t n) {
+    std::vector<uint8_t> f(n, 0);
+    for (int i : list) f[i] = 1;
+    return f;
+  }
+};
+
 // A solve limited to the view (EngineParams::solve_view_margin) takes the surface points whose field
 // position is in it, as the CPU does: on a sphere half out of the image, about half of them.
 TEST(DeformationParityTest, ASolveLimitedToTheViewTakesTheSurfacePointsInItAndMatchesCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  test::AnalyticVolume sphere = test::MakeSphereVolume(
-      test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f, 0.08f);
+  const SphereScene scene;
+  const test::AnalyticVolume& sphere = scene.sphere;
   const VdVolume& vol = sphere.vol;
   const size_t n = sphere.tsdf.size();
-  const cpu::McMesh mesh = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), vol);
-  cpu::ActiveSet all;
-  cpu::BuildActiveSet(mesh.codes.data(), vol, &all);
-  std::vector<uint8_t> surface(n, 0);
-  for (int i : all.list) surface[i] = 1;
+  const cpu::ActiveSet& all = scene.solved;
+  const std::vector<uint8_t>& surface = scene.surface;
   std::vector<vd_float4> pos(n), rot(n);
   cpu::DeformationReset(pos.data(), rot.data(), vol);
   // The sphere's centre projects to u = 161 of 160 columns: its right half is out of view.
@@ -207,20 +218,20 @@ TEST(DeformationParityTest, ASolveLimitedToTheViewTakesTheSurfacePointsInItAndMa
   EXPECT_EQ(solved.count, all.list.size());
 }
 
+// After a solve over M's surface points, the ring follows them: under a rigid motion of the solved
+// points every ring point lands on that motion and counts the solve; the solved points are not
+// touched; device against CPU on a sphere's real active set.
 TEST(DeformationParityTest, RingPointsFollowTheSolvedSurfaceAndMatchCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  test::AnalyticVolume sphere = test::MakeSphereVolume(
-      test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f, 0.08f);
+  const SphereScene scene;
+  const test::AnalyticVolume& sphere = scene.sphere;
   const VdVolume& vol = sphere.vol;
   const size_t n = sphere.tsdf.size();
-  const cpu::McMesh mesh = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), vol);
-  cpu::ActiveSet solved;
-  const cpu::ActiveSet m = cpu::BuildActiveSet(mesh.codes.data(), vol, &solved);
-  ASSERT_GT(m.list.size(), solved.list.size() + 500);
-  std::vector<uint8_t> surface(n, 0);
-  for (int i : solved.list) surface[i] = 1;
+  const cpu::ActiveSet& m = scene.m;
+  const std::vector<uint8_t>& surface = scene.surface;
+  ASSERT_GT(m.list.size(), scene.solved.list.size() + 500);
 
   const Eigen::AngleAxisf turn(60.f * float(M_PI) / 180.f, Eigen::Vector3f(0.5f, -1.f, 0.3f).normalized());
   const Eigen::Quaternionf q(turn);
