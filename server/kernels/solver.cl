@@ -41,8 +41,8 @@ __kernel void vd_constraint_count(__global const VdCorrespondence* corr, __globa
 
 /* Each constraint takes a place in its cell's range of order[] (in whatever order the atomics
  * give; vd_constraint_order then fixes it). */
-__kernel void vd_constraint_scatter(__global const int* cell_of, __global const uint* cell_start,
-                                    __global uint* cursor, __global int* order, int vd_items) {
+__kernel void vd_constraint_scatter(__global const int* cell_of, __global const uint* cell_start, __global uint* cursor,
+                                    __global int* order, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
   int kc = cell_of[i];

@@ -155,8 +155,7 @@ TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesC
 struct SphereScene {
   test::AnalyticVolume sphere = test::MakeSphereVolume(
       test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f, 0.08f);
-  cpu::McMesh mesh =
-      cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), sphere.vol);
+  cpu::McMesh mesh = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), sphere.vol);
   cpu::ActiveSet solved;
   cpu::ActiveSet m = cpu::BuildActiveSet(mesh.codes.data(), sphere.vol, &solved);
   std::vector<uint8_t> surface = Flags(solved.list, sphere.tsdf.size());

@@ -79,8 +79,7 @@ Problem MakeProblem() {
   }
   const int m = int(p.active.list.size());
   p.cell_of.resize(raw.size());
-  for (size_t i = 0; i < raw.size(); ++i)
-    p.cell_of[i] = vd_constraint_cell(raw[i], p.active.compact.data(), p.vol);
+  for (size_t i = 0; i < raw.size(); ++i) p.cell_of[i] = vd_constraint_cell(raw[i], p.active.compact.data(), p.vol);
   cpu::SortConstraints(raw.data(), p.cell_of.data(), int(raw.size()), m, &p.cell_start, &p.cons, &p.cons_cell);
   p.raw = std::move(raw);
   return p;
@@ -236,7 +235,8 @@ TEST(SolverParityTest, ConstraintSortKeepsInputOrderWithinACellAndMatchesTheCpu)
   ASSERT_TRUE(cursor.ok() && order.ok() && sorted.ok() && sorted_cell.ok());
   for (int run = 0; run < 3; ++run) {
     ASSERT_TRUE(ctx->Fill(*cursor, 0u, m).ok());
-    const Status st = ocl::SortConstraints(*ctx, n, m, d_raw, *cell_of, d_start, *cursor, *order, *sorted, *sorted_cell);
+    const Status st =
+        ocl::SortConstraints(*ctx, n, m, d_raw, *cell_of, d_start, *cursor, *order, *sorted, *sorted_cell);
     ASSERT_TRUE(st.ok()) << st.ToString();
     const auto got = FromDevice(ctx, *sorted, total);
     EXPECT_EQ(0, std::memcmp(got.data(), p.cons.data(), total * sizeof(VdCorrespondence))) << "run " << run;

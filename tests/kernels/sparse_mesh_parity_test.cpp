@@ -262,7 +262,8 @@ TEST_F(SparseMeshParityTest, ActiveSetMatchesTheCpuAndTheDenseGrid) {
   // Limited to a view that sees the left part of the scene (the camera moved 0.6 m to the left),
   // with the field at rest: the surface points in it, as the CPU finds them.
   std::vector<vd_float4> rest(n), rest_rot(n);
-  for (size_t i = 0; i < n; ++i) vd_pool_field_rest(ref.slot_keys.data(), int(i), f.vol.voxel_size, rest.data(), rest_rot.data());
+  for (size_t i = 0; i < n; ++i)
+    vd_pool_field_rest(ref.slot_keys.data(), int(i), f.vol.voxel_size, rest.data(), rest_rot.data());
   const ocl::Buffer<vd_float4> d_rest = test::ToDevice(ctx, rest);
   SolveView view;
   view.cam = f.cam;

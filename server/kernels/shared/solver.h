@@ -63,7 +63,6 @@ VD_INLINE int vd_constraint_cell(VdCorrespondence c, VD_GLOBAL const int* compac
   return idx[0];
 }
 
-
 /* Moves a[i] down the max-heap a[0..end) to where it belongs (vd_sort_indices' heapsort). */
 VD_INLINE void vd_sift_down(VD_GLOBAL int* a, int i, int end) {
   int v = a[i];

@@ -139,9 +139,8 @@ Status DeviceSolver::SetupLevel(const DeviceLattice& lattice, const DeviceActive
   VD_RETURN_IF_ERROR(ctx.Reserve(&targets_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Reserve(&residuals_, std::max<size_t>(total, 1)));
   VD_RETURN_IF_ERROR(ctx.Fill(cell_count_, 0u, m_ + 1));
-  VD_RETURN_IF_ERROR(
-      ocl::SortConstraints(ctx, num_pixels, m_, per_pixel, cell_of_, cell_start_, cell_count_, cons_order_, cons_,
-                           cons_cell_));
+  VD_RETURN_IF_ERROR(ocl::SortConstraints(ctx, num_pixels, m_, per_pixel, cell_of_, cell_start_, cell_count_,
+                                          cons_order_, cons_, cons_cell_));
   if (cache_btb_) {
     return ocl::BuildBtb(ctx, lattice_, active, edge_w_, cons_, cell_start_, Weights(), moments_, btb_, btb_nbr_,
                          data_rhs_, diag_inv_);

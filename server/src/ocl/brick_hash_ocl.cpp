@@ -57,8 +57,8 @@ Status BrickTable::AllocateFromDepth(Context& ctx, const Buffer<float>& depth, V
   if (!(brick_size > 0.f) || !(truncation >= 0.f)) return InvalidArgument("brick size and truncation must be positive");
   if (depth.size() < size_t(cam.width) * cam.height) return InvalidArgument("depth buffer smaller than the camera");
   VD_RETURN_IF_ERROR(kBrickAllocDepth(ctx, size_t(vd_depth_tiles_x(cam)) * vd_depth_tiles_y(cam), depth, cam,
-                                      cam_to_world, truncation, brick_size, keys_, slots_, slot_keys_, capacity_,
-                                      pool_, counters_));
+                                      cam_to_world, truncation, brick_size, keys_, slots_, slot_keys_, capacity_, pool_,
+                                      counters_));
   return OrderNewSlots(ctx).status();
 }
 
