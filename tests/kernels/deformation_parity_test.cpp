@@ -4,12 +4,14 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <random>
 
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/device_ops.h"
 #include "shared/deformation.h"
 #include "sphere_volume.h"
+#include "device_ops_test.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -150,36 +152,38 @@ TEST(DeformationParityTest, ExtrapolationFollowsTheNeighboursRotationAndMatchesC
   EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 0.f, 0.f));
 }
 
-// The sphere the tests of M's surface take M from (radius 8 voxels in a 32 x 30 x 28 grid): its CPU
-// mesh, M, M's surface points (the solver's) and their flags.
-struct SphereScene {
-  test::AnalyticVolume sphere = test::MakeSphereVolume(
-      test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f, 0.08f);
-  cpu::McMesh mesh = cpu::MarchingCubes(sphere.tsdf.data(), sphere.weight.data(), sphere.color.data(), sphere.vol);
-  cpu::ActiveSet solved;
-  cpu::ActiveSet m = cpu::BuildActiveSet(mesh.codes.data(), sphere.vol, &solved);
-  std::vector<uint8_t> surface = Flags(solved.list, sphere.tsdf.size());
-  static std::vector<uint8_t> Flags(const std::vector<int>& list, size_t n) {
-    std::vector<uint8_t> f(n, 0);
-    for (int i : list) f[i] = 1;
-    return f;
+// M's surface on a sphere (radius 8 voxels in a 32 x 30 x 28 grid): the CPU's mesh, M, M's surface
+// points (the solver's) and their flags, and a device grid holding the same sphere, meshed.
+class SurfacePointsParityTest : public test::DeviceOpsTest {
+ protected:
+  void SetUp() override {
+    test::DeviceOpsTest::SetUp();
+    if (IsSkipped() || HasFatalFailure()) return;
+    ASSERT_TRUE(ops_->AllocVolume(vol_, true, &dv_).ok());
+    ASSERT_TRUE(ctx_->Upload(dv_.tsdf, sphere_.tsdf.data(), n_).ok());
+    ASSERT_TRUE(ctx_->Upload(dv_.weight, sphere_.weight.data(), n_).ok());
+    ASSERT_TRUE(ops_->MarkTouched(dv_).ok());
+    ASSERT_TRUE(ops_->MarchingCubes(dv_, &dm_).ok());
+    for (int i : solved_.list) surface_[i] = 1;
   }
+  const test::AnalyticVolume sphere_ = test::MakeSphereVolume(
+      test::TestVolume(32, 30, 28, 0.01f, VD_F4(-0.1f, -0.1f, 0.5f, 1.f)), 0.06f, 0.05f, 0.64f, 0.08f);
+  const VdVolume& vol_ = sphere_.vol;
+  const size_t n_ = sphere_.tsdf.size();
+  const cpu::McMesh mesh_ =
+      cpu::MarchingCubes(sphere_.tsdf.data(), sphere_.weight.data(), sphere_.color.data(), sphere_.vol);
+  cpu::ActiveSet solved_;
+  const cpu::ActiveSet m_ = cpu::BuildActiveSet(mesh_.codes.data(), vol_, &solved_);
+  std::vector<uint8_t> surface_ = std::vector<uint8_t>(n_, 0);
+  DeviceVolume dv_;
+  DeviceMesh dm_;
 };
 
 // A solve limited to the view (EngineParams::solve_view_margin) takes the surface points whose field
 // position is in it, as the CPU does: on a sphere half out of the image, about half of them.
-TEST(DeformationParityTest, ASolveLimitedToTheViewTakesTheSurfacePointsInItAndMatchesCpu) {
-  VD_REQUIRE_OCL(ctx);
-  DeviceOps ops(ctx);
-  ASSERT_TRUE(ops.Init().ok());
-  const SphereScene scene;
-  const test::AnalyticVolume& sphere = scene.sphere;
-  const VdVolume& vol = sphere.vol;
-  const size_t n = sphere.tsdf.size();
-  const cpu::ActiveSet& all = scene.solved;
-  const std::vector<uint8_t>& surface = scene.surface;
-  std::vector<vd_float4> pos(n), rot(n);
-  cpu::DeformationReset(pos.data(), rot.data(), vol);
+TEST_F(SurfacePointsParityTest, ASolveLimitedToTheViewTakesTheSurfacePointsInItAndMatchesCpu) {
+  std::vector<vd_float4> pos(n_), rot(n_);
+  cpu::DeformationReset(pos.data(), rot.data(), vol_);
   // The sphere's centre projects to u = 161 of 160 columns: its right half is out of view.
   SolveView view;
   view.cam.fx = view.cam.fy = 200.f;
@@ -192,55 +196,38 @@ TEST(DeformationParityTest, ASolveLimitedToTheViewTakesTheSurfacePointsInItAndMa
   view.world_to_cam.r2 = VD_F4(0.f, 0.f, 1.f, 0.f);
   view.margin = 0.02f;
   const std::vector<uint8_t> in_view =
-      cpu::ActiveInView(surface, pos.data(), vol.dim_x, view.cam, view.world_to_cam, view.margin);
+      cpu::ActiveInView(surface_, pos.data(), vol_.dim_x, view.cam, view.world_to_cam, view.margin);
   std::vector<int32_t> want;
-  for (size_t i = 0; i < n; ++i)
+  for (size_t i = 0; i < n_; ++i)
     if (in_view[i]) want.push_back(int32_t(i));
-  std::printf("%zu of %zu surface points in view\n", want.size(), all.list.size());
-  ASSERT_GT(want.size(), all.list.size() / 4);
-  ASSERT_LT(want.size(), all.list.size() * 3 / 4);
+  std::printf("%zu of %zu surface points in view\n", want.size(), solved_.list.size());
+  ASSERT_GT(want.size(), solved_.list.size() / 4);
+  ASSERT_LT(want.size(), solved_.list.size() * 3 / 4);
 
-  DeviceVolume dv;
-  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
-  ASSERT_TRUE(ctx->Upload(dv.tsdf, sphere.tsdf.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.weight, sphere.weight.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
-  ASSERT_TRUE(ops.MarkTouched(dv).ok());
-  DeviceMesh dm;
-  ASSERT_TRUE(ops.MarchingCubes(dv, &dm).ok());
+  ASSERT_TRUE(ctx_->Upload(dv_.def_pos, pos.data(), n_).ok());
   DeviceActiveSet active, solved;
-  ASSERT_TRUE(ops.BuildActiveSet(dv, &active, &solved, &view).ok());
+  ASSERT_TRUE(ops_->BuildActiveSet(dv_, &active, &solved, &view).ok());
   ASSERT_EQ(solved.count, want.size());
-  EXPECT_EQ(test::FromDevice(ctx, solved.list, solved.count), want);
+  EXPECT_EQ(test::FromDevice(ctx_, solved.list, solved.count), want);
   // M itself does not change with the view.
-  ASSERT_TRUE(ops.BuildActiveSet(dv, &active, &solved).ok());
-  EXPECT_EQ(solved.count, all.list.size());
+  ASSERT_TRUE(ops_->BuildActiveSet(dv_, &active, &solved).ok());
+  EXPECT_EQ(solved.count, solved_.list.size());
 }
 
 // After a solve over M's surface points, the ring follows them: under a rigid motion of the solved
 // points every ring point lands on that motion and counts the solve; the solved points are not
 // touched; device against CPU on a sphere's real active set.
-TEST(DeformationParityTest, RingPointsFollowTheSolvedSurfaceAndMatchCpu) {
-  VD_REQUIRE_OCL(ctx);
-  DeviceOps ops(ctx);
-  ASSERT_TRUE(ops.Init().ok());
-  const SphereScene scene;
-  const test::AnalyticVolume& sphere = scene.sphere;
-  const VdVolume& vol = sphere.vol;
-  const size_t n = sphere.tsdf.size();
-  const cpu::ActiveSet& m = scene.m;
-  const std::vector<uint8_t>& surface = scene.surface;
-  ASSERT_GT(m.list.size(), scene.solved.list.size() + 500);
-
+TEST_F(SurfacePointsParityTest, RingPointsFollowTheSolvedSurfaceAndMatchCpu) {
+  ASSERT_GT(m_.list.size(), solved_.list.size() + 500);
   const Eigen::AngleAxisf turn(60.f * float(M_PI) / 180.f, Eigen::Vector3f(0.5f, -1.f, 0.3f).normalized());
   const Eigen::Quaternionf q(turn);
   const Eigen::Vector3f shift(0.01f, 0.03f, -0.02f);
-  std::vector<vd_float4> pos(n), rot(n);
-  cpu::DeformationReset(pos.data(), rot.data(), vol);
-  std::vector<Eigen::Vector3f> want(n);
-  for (int i : m.list) {
+  std::vector<vd_float4> pos(n_), rot(n_);
+  cpu::DeformationReset(pos.data(), rot.data(), vol_);
+  std::vector<Eigen::Vector3f> want(n_);
+  for (int i : m_.list) {
     want[i] = turn * Eigen::Vector3f(pos[i].x, pos[i].y, pos[i].z) + shift;
-    if (surface[i]) {  // solved: on the motion, 5 solves
+    if (surface_[i]) {  // solved: on the motion, 5 solves
       pos[i] = VD_F4(want[i].x(), want[i].y(), want[i].z(), 5.f);
       rot[i] = VD_F4(q.x(), q.y(), q.z(), q.w());
     } else {  // ring: stale (at rest), 2 solves
@@ -248,11 +235,11 @@ TEST(DeformationParityTest, RingPointsFollowTheSolvedSurfaceAndMatchCpu) {
     }
   }
   std::vector<vd_float4> pos_ref = pos, rot_ref = rot;
-  cpu::Follow(m.list.data(), int(m.list.size()), surface.data(), pos_ref.data(), rot_ref.data(), vol);
+  cpu::Follow(m_.list.data(), int(m_.list.size()), surface_.data(), pos_ref.data(), rot_ref.data(), vol_);
   double worst = 0;
-  for (int i : m.list) {
+  for (int i : m_.list) {
     const Eigen::Vector3f got(pos_ref[i].x, pos_ref[i].y, pos_ref[i].z);
-    if (surface[i]) {
+    if (surface_[i]) {
       ASSERT_EQ(pos_ref[i].x, pos[i].x);
       ASSERT_EQ(pos_ref[i].w, 5.f);
       continue;
@@ -261,26 +248,20 @@ TEST(DeformationParityTest, RingPointsFollowTheSolvedSurfaceAndMatchCpu) {
     EXPECT_EQ(pos_ref[i].w, 3.f);
     EXPECT_NEAR(std::abs(rot_ref[i].w), std::abs(q.w()), 1e-6f);
   }
-  std::printf("worst ring point %.3g m from the rigid motion (voxel %.3g m)\n", worst, vol.voxel_size);
+  std::printf("worst ring point %.3g m from the rigid motion (voxel %.3g m)\n", worst, vol_.voxel_size);
   EXPECT_LT(worst, 1e-5);
 
   // The device: the same M and surface from its own build, then Follow.
-  DeviceVolume dv;
-  ASSERT_TRUE(ops.AllocVolume(vol, true, &dv).ok());
-  ASSERT_TRUE(ctx->Upload(dv.tsdf, sphere.tsdf.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.weight, sphere.weight.data(), n).ok());
-  ASSERT_TRUE(ops.MarkTouched(dv).ok());
-  DeviceMesh dm;
-  ASSERT_TRUE(ops.MarchingCubes(dv, &dm).ok());
   DeviceActiveSet active, solved_dev;
-  ASSERT_TRUE(ops.BuildActiveSet(dv, &active, &solved_dev).ok());
-  ASSERT_EQ(active.count, m.list.size());
-  ASSERT_TRUE(ctx->Upload(dv.def_pos, pos.data(), n).ok());
-  ASSERT_TRUE(ctx->Upload(dv.def_rot, rot.data(), n).ok());
-  ASSERT_TRUE(ops.Follow(dv, active).ok());
+  ASSERT_TRUE(ops_->BuildActiveSet(dv_, &active, &solved_dev).ok());
+  ASSERT_EQ(active.count, m_.list.size());
+  ASSERT_TRUE(ctx_->Upload(dv_.def_pos, pos.data(), n_).ok());
+  ASSERT_TRUE(ctx_->Upload(dv_.def_rot, rot.data(), n_).ok());
+  ASSERT_TRUE(ops_->Follow(dv_, active).ok());
   EXPECT_TRUE(
-      test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_pos, n)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
-  EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, dv.def_rot, n)), test::Flatten(rot_ref), 0.f, 0.f));
+      test::AllClose(test::Flatten(test::FromDevice(ctx_, dv_.def_pos, n_)), test::Flatten(pos_ref), 1e-6f, 1e-6f));
+  EXPECT_TRUE(
+      test::AllClose(test::Flatten(test::FromDevice(ctx_, dv_.def_rot, n_)), test::Flatten(rot_ref), 0.f, 0.f));
 }
 
 // Moving a rigid motion out of the field: every optimised point takes t' = A t and R' = q_A R,

@@ -16,6 +16,7 @@
 #include "ocl/mc_table.h"
 #include "shared/solver.h"
 #include "shared/sparse_field.h"
+#include "device_ops_test.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -65,14 +66,11 @@ std::set<uint32_t> KeySetOf(ocl::Context* ctx, const ocl::BrickTable& t) {
 }
 
 // The sphere fused twice into a fresh pool (with a field at rest) and meshed.
-class SparseMeshParityTest : public ::testing::Test {
+class SparseMeshParityTest : public test::DeviceOpsTest {
  protected:
   void SetUp() override {
-    ctx_ = test::SharedContext(&error_);
-    if (!ctx_ && !error_.empty()) FAIL() << error_;
-    if (!ctx_) GTEST_SKIP() << "no OpenCL device (install pocl-opencl-icd; set POCL_CACHE_DIR)";
-    ops_.emplace(ctx_);
-    ASSERT_TRUE(ops_->Init().ok());
+    test::DeviceOpsTest::SetUp();
+    if (IsSkipped() || HasFatalFailure()) return;
     test::FuseSphere(ctx_, 2, &f_, /*with_field=*/true);
     if (HasFatalFailure()) return;
     ASSERT_TRUE(ops_->MarchingCubes(*f_.table, *f_.pool, &mesh_).ok());
@@ -84,9 +82,6 @@ class SparseMeshParityTest : public ::testing::Test {
     return cpu::SparseMarchingCubes(ref_, f_.counts.used, voxels_.tsdf.data(), voxels_.weight.data(),
                                     voxels_.color.data());
   }
-  std::string error_;
-  ocl::Context* ctx_ = nullptr;
-  std::optional<DeviceOps> ops_;
   test::FusedBricks f_;
   DeviceMesh mesh_;
   cpu::BrickTable ref_{1, 1};

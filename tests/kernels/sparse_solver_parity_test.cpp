@@ -19,6 +19,7 @@
 #include "ocl/features_ocl.h"
 #include "ocl/hierarchy_ocl.h"
 #include "shared/active_set.h"
+#include "device_ops_test.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -38,14 +39,11 @@ std::set<uint32_t> KeysOf(const std::vector<uint32_t>& keys) {
 // The sphere's bricks with the one-ring and the coarse corners allocated, the field at rest, the
 // active set over them, and the dense grid over the same lattice (its origin a multiple of 8
 // voxels, so that the coarse levels' points coincide).
-class SparseSolverParityTest : public ::testing::Test {
+class SparseSolverParityTest : public test::DeviceOpsTest {
  protected:
   void SetUp() override {
-    ctx_ = test::SharedContext(&error_);
-    if (!ctx_ && !error_.empty()) FAIL() << error_;
-    if (!ctx_) GTEST_SKIP() << "no OpenCL device (install pocl-opencl-icd; set POCL_CACHE_DIR)";
-    ops_.emplace(ctx_);
-    ASSERT_TRUE(ops_->Init().ok());
+    test::DeviceOpsTest::SetUp();
+    if (IsSkipped() || HasFatalFailure()) return;
     test::FuseSphere(ctx_, 2, &f_, /*with_field=*/true);
     if (HasFatalFailure()) return;
     ASSERT_TRUE(ops_->MarchingCubes(*f_.table, *f_.pool, &mesh_).ok());
@@ -83,9 +81,6 @@ class SparseSolverParityTest : public ::testing::Test {
   }
 
   static constexpr int kCoarsest = 4;  // three levels: spacings 1, 2, 4
-  std::string error_;
-  ocl::Context* ctx_ = nullptr;
-  std::optional<DeviceOps> ops_;
   test::FusedBricks f_;
   DeviceMesh mesh_;
   DeviceActiveSet active_;

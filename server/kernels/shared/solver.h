@@ -109,6 +109,7 @@ VD_INLINE void vd_constraint_order_cell(int kc, VD_GLOBAL const VdCorrespondence
     sorted_cell[c] = kc;
   }
 }
+
 /* The active set M on its lattice (shared/lattice.h), as the solver's kernels see it: built in each
  * kernel from its arguments (OpenCL 1.2 kernels cannot take buffers inside a struct). */
 typedef struct {
