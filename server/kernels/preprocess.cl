@@ -93,3 +93,21 @@ __kernel void vd_normal_map(__global const float4* vmap, __global float4* nmap, 
   int i = get_global_id(0);
   nmap[i] = vd_normal_pixel(vmap, width, height, i % width, i / width, max_jump);
 }
+
+__kernel void vd_luma_hblur(__global const uint* rgba, __global float* out, int width, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int i = get_global_id(0);
+  out[i] = vd_luma_hblur_pixel(rgba, width, i % width, i / width);
+}
+
+__kernel void vd_vblur(__global const float* in, __global float* out, int width, int height, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int i = get_global_id(0);
+  out[i] = vd_vblur_pixel(in, width, height, i % width, i / width);
+}
+
+__kernel void vd_hblur(__global const float* in, __global float* out, int width, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  int i = get_global_id(0);
+  out[i] = vd_hblur_pixel(in, width, i % width, i / width);
+}

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "cpu_ref/cpu_ref.h"
@@ -30,6 +31,129 @@ TEST(CorrespondenceTest, WeightFollowsThePapersKernels) {
   EXPECT_EQ(vd_corr_weight(0.f, 0.4f, 1.f, p), 0.f);
   EXPECT_EQ(vd_corr_weight(0.f, 1.f, 0.15f, p), 0.f);
   EXPECT_GT(vd_corr_weight(0.f, 1.f, 0.25f, p), 0.f);
+}
+
+// Packs 8-bit R, G, B as the frames are uploaded (R in the low byte, alpha 255).
+uint32_t Rgba(int r, int g, int b) { return uint32_t(r) | uint32_t(g) << 8 | uint32_t(b) << 16 | 255u << 24; }
+
+// A plane at z = 1 m facing a 64 x 48 camera, every pixel's model sample coloured grey 100 (all on
+// one triangle), every pixel's depth row valid with w_c = 0.8; the camera sits at a rotated and
+// shifted pose. The intensity image is given directly.
+struct ColourRowScene {
+  VdCamera cam = test::TestCamera(64, 48);
+  int n = 64 * 48;
+  cpu::RasterMaps model;
+  std::vector<vd_float4> obs_v;
+  std::vector<uint32_t> colors = {Rgba(100, 100, 100), Rgba(100, 100, 100), Rgba(100, 100, 100)};
+  std::vector<int32_t> tris = {0, 1, 2};
+  std::vector<float> intensity;
+  VdPhotoParams prm{};
+  ColourRowScene() {
+    model.vertex.resize(n);
+    model.ids.assign(n, 0u);
+    model.bary.assign(n, VD_F4(1.f, 0.f, 0.f, 0.f));
+    for (int i = 0; i < n; ++i)
+      model.vertex[i] = VD_F4((i % cam.width - cam.cx) / cam.fx, (i / cam.width - cam.cy) / cam.fy, 1.f, 1.f);
+    obs_v = model.vertex;
+    intensity.assign(n, 0.f);
+    // 30 degrees about y, then 10 cm along x.
+    const float c = std::cos(0.5236f), s = std::sin(0.5236f);
+    prm.cam_to_world.r0 = VD_F4(c, 0.f, s, 0.1f);
+    prm.cam_to_world.r1 = VD_F4(0.f, 1.f, 0.f, 0.f);
+    prm.cam_to_world.r2 = VD_F4(-s, 0.f, c, 0.f);
+    prm.cam = cam;
+    prm.scale = 0.03f;
+    prm.huber = 0.1f;
+    prm.min_gradient = 0.002f;
+    prm.max_strength = 100.f;
+    prm.max_jump = 0.05f;
+    prm.edge_radius = 4;
+  }
+  // The intensity I(u, v) = 100 / 255 + offset + gu (u - 30) + gv (v - 20).
+  void Ramp(float offset, float gu, float gv) {
+    for (int i = 0; i < n; ++i)
+      intensity[i] = 100.f / 255.f + offset + gu * float(i % cam.width - 30) + gv * float(i / cam.width - 20);
+  }
+  std::vector<VdCorrespondence> Rows() const {
+    std::vector<VdCorrespondence> rows(2 * size_t(n));
+    for (int i = 0; i < n; ++i) {
+      rows[i] = VdCorrespondence{};
+      rows[i].canonical = VD_F4(1.f, 2.f, 3.f, 0.8f);
+    }
+    cpu::PhotometricCorrespondences(model, obs_v.data(), colors.data(), tris.data(), intensity.data(), prm, rows.data());
+    return rows;
+  }
+};
+
+TEST(CorrespondenceTest, ColourRowIsTheLinearisedIntensityError) {
+  ColourRowScene sc;
+  sc.Ramp(0.02f, 0.01f, 0.005f);
+  const auto rows = sc.Rows();
+  const int i = 20 * sc.cam.width + 30;
+  const VdCorrespondence& c = rows[sc.n + i];
+  // Same canonical sample, the depth row's weight (the residual 0.02 is under the Huber threshold).
+  EXPECT_FLOAT_EQ(c.canonical.x, 1.f);
+  EXPECT_FLOAT_EQ(c.canonical.z, 3.f);
+  EXPECT_FLOAT_EQ(c.canonical.w, 0.8f);
+  const vd_float4 p = sc.model.vertex[i];
+  const vd_float4 s0 = vd_pose_apply(sc.prm.cam_to_world, p);
+  // At the rendered point the row is s (I - c).
+  EXPECT_NEAR(vd_dot3(c.normal, s0 - c.target), 0.03f * 0.02f, 1e-6f);
+  // Moved by d (world), the row changes as s (I(pi(P + R^T d)) - I(pi(P))) to first order, and not
+  // at all along the viewing ray.
+  const float fx = sc.cam.fx, fy = sc.cam.fy;
+  const vd_float4 dirs[4] = {VD_F4(1e-3f, 0.f, 0.f, 0.f), VD_F4(0.f, 1e-3f, 0.f, 0.f), VD_F4(0.f, 0.f, 1e-3f, 0.f),
+                             VD_F4(-7e-4f, 4e-4f, 5e-4f, 0.f)};
+  for (const vd_float4& d : dirs) {
+    const VdPose& t = sc.prm.cam_to_world;
+    // R^T d: the displacement in camera coordinates.
+    const vd_float4 dc = VD_F4(t.r0.x * d.x + t.r1.x * d.y + t.r2.x * d.z, t.r0.y * d.x + t.r1.y * d.y + t.r2.y * d.z,
+                               t.r0.z * d.x + t.r1.z * d.y + t.r2.z * d.z, 0.f);
+    const vd_float4 q = p + dc;
+    const float du = fx * q.x / q.z - fx * p.x / p.z, dv = fy * q.y / q.z - fy * p.y / p.z;
+    const float expected = 0.03f * (0.01f * du + 0.005f * dv);
+    EXPECT_NEAR(vd_dot3(c.normal, d), expected, 2e-7f) << d.x << " " << d.y << " " << d.z;
+  }
+  const vd_float4 ray = vd_pose_rotate(sc.prm.cam_to_world, p);
+  EXPECT_NEAR(vd_dot3(c.normal, ray), 0.f, 1e-6f);
+  // A bright spot far off the model's colour weighs linearly (Huber 0.1 at a residual of 0.5).
+  sc.Ramp(0.5f, 0.01f, 0.005f);
+  EXPECT_NEAR(sc.Rows()[sc.n + i].canonical.w, 0.8f * 0.1f / 0.5f, 1e-5f);
+  // The cap: a row never weighs more than max_strength of a depth row, with the same zero.
+  sc.prm.max_strength = 0.01f;
+  sc.Ramp(0.02f, 0.01f, 0.005f);
+  const VdCorrespondence capped = sc.Rows()[sc.n + i];
+  ASSERT_GT(vd_length3(c.normal), 0.015f);
+  EXPECT_NEAR(vd_length3(capped.normal), 0.01f, 1e-6f);
+  EXPECT_NEAR(vd_dot3(capped.normal, s0 - capped.target) / vd_length3(capped.normal),
+              vd_dot3(c.normal, s0 - c.target) / vd_length3(c.normal), 1e-6f);
+}
+
+TEST(CorrespondenceTest, ColourRowsNeedTextureSmoothDepthAndADepthRow) {
+  ColourRowScene sc;
+  const int i = 20 * sc.cam.width + 30;
+  // No texture: no row anywhere.
+  sc.Ramp(0.02f, 0.f, 0.f);
+  for (const auto& c : sc.Rows()) EXPECT_FALSE(c.canonical.w > 0.f && c.normal.x != 0.f);
+  // Texture: every pixel at least edge_radius from the border has one.
+  sc.Ramp(0.02f, 0.01f, 0.f);
+  auto rows = sc.Rows();
+  int count = 0;
+  for (int k = 0; k < sc.n; ++k) count += rows[sc.n + k].canonical.w > 0.f;
+  EXPECT_EQ(count, (64 - 8) * (48 - 8));
+  // A depth edge 3 or 4 pixels to the right drops the row; 5 pixels away it does not.
+  for (int gap : {3, 4, 5}) {
+    sc.obs_v = sc.model.vertex;
+    for (int k = 0; k < sc.n; ++k)
+      if (k % sc.cam.width >= 30 + gap) sc.obs_v[k].z = 1.2f;
+    EXPECT_EQ(sc.Rows()[sc.n + i].canonical.w > 0.f, gap > 4) << gap;
+  }
+  // A pixel without a depth row has no colour row.
+  sc.obs_v = sc.model.vertex;
+  std::vector<VdCorrespondence> none(2 * size_t(sc.n));
+  cpu::PhotometricCorrespondences(sc.model, sc.obs_v.data(), sc.colors.data(), sc.tris.data(), sc.intensity.data(),
+                                  sc.prm, none.data());
+  for (const auto& c : none) EXPECT_EQ(c.canonical.w, 0.f);
 }
 
 TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
@@ -104,6 +228,44 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
     return f;
   };
   EXPECT_TRUE(test::AllClose(flatten(dev), flatten(ref), 1e-5f, 1e-5f));
+
+  // The colour rows on the same pixels: a striped image against the model's (uniform) colour.
+  std::vector<uint32_t> rgba(n);
+  for (int k = 0; k < n; ++k) {
+    const int g = int(127.5f + 120.f * std::sin(0.7f * float(k % cam.width)) * std::cos(0.45f * float(k / cam.width)));
+    rgba[k] = Rgba(g, 255 - g, g / 2);
+  }
+  std::vector<float> intensity(n);
+  cpu::Intensity(rgba.data(), intensity.data(), cam.width, cam.height);
+  VdPhotoParams pp{};
+  pp.cam_to_world = prm.cam_to_world;
+  pp.cam = cam;
+  pp.scale = 0.03f;
+  pp.huber = 0.1f;
+  pp.min_gradient = 0.002f;
+  pp.max_strength = 0.5f;
+  pp.max_jump = 0.05f;
+  pp.edge_radius = 4;
+  std::vector<VdCorrespondence> rows(2 * size_t(n));
+  std::copy(ref.begin(), ref.end(), rows.begin());
+  cpu::PhotometricCorrespondences(model, ov.data(), mc.colors.data(), mc.triangles.data(), intensity.data(), pp,
+                                  rows.data());
+  int colour_rows = 0;
+  for (int k = 0; k < n; ++k) colour_rows += rows[n + k].canonical.w > 0.f;
+  // Most of the sphere's inner pixels (those 4 px inside its outline) have texture.
+  EXPECT_GT(colour_rows, 1000);
+  EXPECT_LT(colour_rows, valid);
+  dm.colors = test::ToDevice(ctx, mc.colors);
+  auto drgba = test::ToDevice(ctx, rgba);
+  auto tmp = ctx->Alloc<float>(n), dint = ctx->Alloc<float>(n);
+  auto drows = ctx->Alloc<VdCorrespondence>(2 * size_t(n));
+  ASSERT_TRUE(tmp.ok() && dint.ok() && drows.ok());
+  ASSERT_TRUE(ops.Intensity(drgba, *tmp, *dint, cam.width, cam.height).ok());
+  ASSERT_TRUE(ops.Correspondences(dr, dov, don, dm, prm, *drows).ok());
+  ASSERT_TRUE(ops.PhotometricCorrespondences(dr, dov, dm, *dint, pp, *drows).ok());
+  EXPECT_TRUE(test::AllClose(flatten(test::FromDevice(ctx, *drows, 2 * size_t(n))), flatten(rows), 1e-5f, 1e-5f));
+  // A buffer without room for the colour rows is refused, not overrun.
+  EXPECT_FALSE(ops.PhotometricCorrespondences(dr, dov, dm, *dint, pp, *out).ok());
 }
 
 }  // namespace

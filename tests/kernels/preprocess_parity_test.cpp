@@ -1,3 +1,4 @@
+#include <cmath>
 #include <cstdlib>
 
 #include <gtest/gtest.h>
@@ -69,6 +70,45 @@ TEST(PreprocessParityTest, ConvertBilateralPyramidVertexNormalMatchCpu) {
 // groups straddle rows and the image's edges (the gather path) and the last group is partial:
 // against the reference, and the same at lane widths 1, 4 and the device's own up to the last bits
 // of exp() (PoCL's vector exp and its scalar one round differently).
+// Packs 8-bit R, G, B as the frames are uploaded (R in the low byte, alpha 255).
+uint32_t Rgba(int r, int g, int b) { return uint32_t(r) | uint32_t(g) << 8 | uint32_t(b) << 16 | 255u << 24; }
+
+TEST(PreprocessParityTest, IntensityIsSmoothedLumaAndMatchesCpu) {
+  VD_REQUIRE_OCL(ctx);
+  DeviceOps ops(ctx);
+  ASSERT_TRUE(ops.Init().ok());
+  // An odd size, so rows do not line up with any vector width; random colours.
+  const int w = 97, h = 61, n = w * h;
+  std::vector<uint32_t> rgba(n);
+  std::srand(7);
+  for (uint32_t& c : rgba) c = Rgba(std::rand() % 256, std::rand() % 256, std::rand() % 256);
+  std::vector<float> ref(n);
+  cpu::Intensity(rgba.data(), ref.data(), w, h);
+  auto drgba = test::ToDevice(ctx, rgba);
+  auto tmp = ctx->Alloc<float>(n), out = ctx->Alloc<float>(n);
+  ASSERT_TRUE(tmp.ok() && out.ok());
+  ASSERT_TRUE(ops.Intensity(drgba, *tmp, *out, w, h).ok());
+  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, *out, n), ref, 1e-6f, 1e-6f));
+  // Smoothing: the noise's spread falls (uniform luma has a standard deviation near 0.2).
+  double mean = 0, var = 0;
+  for (float v : ref) mean += v / n;
+  for (float v : ref) var += (v - mean) * (v - mean) / n;
+  EXPECT_NEAR(mean, 0.5, 0.02);
+  EXPECT_LT(std::sqrt(var), 0.06);
+
+  // BT.601 luma: pure red, green and blue, and a uniform image keeps its value everywhere.
+  EXPECT_NEAR(vd_rgba_luma(Rgba(255, 0, 0)), 0.299f, 1e-6f);
+  EXPECT_NEAR(vd_rgba_luma(Rgba(0, 255, 0)), 0.587f, 1e-6f);
+  EXPECT_NEAR(vd_rgba_luma(Rgba(0, 0, 255)), 0.114f, 1e-6f);
+  // A horizontal ramp stays a ramp of the same slope away from the edges (the blur is symmetric),
+  // so the colour term's central differences see the true gradient there.
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) rgba[y * w + x] = Rgba(2 * x, 2 * x, 2 * x);
+  cpu::Intensity(rgba.data(), ref.data(), w, h);
+  for (int y = 0; y < h; ++y)
+    for (int x = 10; x < w - 10; ++x) ASSERT_NEAR(ref[y * w + x], 2.f * x / 255.f, 1e-5f) << x << "," << y;
+}
+
 TEST(PreprocessParityTest, BilateralIsTheSameAtEveryLaneWidth) {
   VD_REQUIRE_OCL(ctx);
   const VdCamera cam = test::TestCamera(157, 61);

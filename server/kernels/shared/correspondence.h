@@ -9,6 +9,7 @@
 #ifndef VD_CORRESPONDENCE_H
 #define VD_CORRESPONDENCE_H
 
+#include "preprocess.h"
 #include "vd_types.h"
 
 typedef struct {
@@ -60,6 +61,97 @@ VD_INLINE VdCorrespondence vd_correspondence_pixel(int i, VD_GLOBAL const vd_flo
   c.canonical = VD_F4(g.x, g.y, g.z, w);
   c.target = vd_pose_apply(prm.cam_to_world, pa);
   c.normal = vd_pose_rotate(prm.cam_to_world, na);
+  return c;
+}
+
+/* The dense colour term (beyond the paper, whose E_sparse pins the motion along the surface, which
+ * depth cannot see, only at SIFT keypoints; docs/NONRIGID.md "Dense colour term"). Each pixel with a
+ * depth row gets a second row on the same canonical sample: the observed intensity I (smoothed luma,
+ * shared/preprocess.h) at the pixel the sample renders to, against the model's colour there, c.
+ * Linearised at the rendered point P (camera coordinates),
+ *   I(pi(P + d)) - c ~ (I - c) + g . d,   g = J_pi(P)^T grad I,
+ * which is a row of the point-to-plane form n . (S - q) with n = s R g and
+ * q = S0 - n s (I - c) / |n|^2 in the field's frame (R, S0: P's rotation and position there), so the
+ * solver and its hierarchy take it unchanged. g is perpendicular to the viewing ray: the row sees
+ * what depth does not. s converts intensity to metres; the weight is the depth row's w_c times a
+ * Huber weight of I - c, so occlusions, highlights and lighting changes count only linearly. */
+typedef struct {
+  /* The current camera, camera to world. */
+  VdPose cam_to_world;
+  VdCamera cam;
+  /* s: the metres of point-to-plane error one unit of intensity (black to white) weighs as. */
+  float scale;
+  /* Intensity residual beyond which a row weighs linearly (Huber). */
+  float huber;
+  /* Rows whose intensity gradient is under this per pixel carry no information: dropped. */
+  float min_gradient;
+  /* |n| at most: a row weighs at most this much of a depth row (|normal| = 1). */
+  float max_strength;
+  /* Rows within edge_radius pixels of an observed depth edge (a jump larger than max_jump of the
+   * depth, or no depth) are dropped: the smoothed intensity there mixes two surfaces. */
+  float max_jump;
+  int edge_radius;
+  int pad0, pad1;
+} VdPhotoParams;
+
+/* Whether the observed depth is continuous over the cross of edge_radius pixels around pixel (x, y). */
+VD_INLINE int vd_photo_depth_smooth(VD_GLOBAL const vd_float4* obs_v, int x, int y, VdPhotoParams prm) {
+  int w = prm.cam.width, r = prm.edge_radius;
+  if (x < r || y < r || x >= w - r || y >= prm.cam.height - r) return 0;
+  float z = obs_v[y * w + x].z, lim = prm.max_jump * z;
+  if (!(obs_v[y * w + x].w > 0.0f)) return 0;
+  for (int k = 1; k <= r; k *= 2) {
+    vd_float4 a = obs_v[y * w + x - k], b = obs_v[y * w + x + k], c = obs_v[(y - k) * w + x], d = obs_v[(y + k) * w + x];
+    if (a.w == 0.0f || b.w == 0.0f || c.w == 0.0f || d.w == 0.0f) return 0;
+    if (fabs(a.z - z) > lim || fabs(b.z - z) > lim || fabs(c.z - z) > lim || fabs(d.z - z) > lim) return 0;
+  }
+  return 1;
+}
+
+/* The model's luma at pixel i: its triangle's vertex colours (packed as the frames) at the raster's
+ * barycentrics. */
+VD_INLINE float vd_model_luma(int i, VD_GLOBAL const vd_uint* ids, VD_GLOBAL const vd_float4* bary,
+                              VD_GLOBAL const vd_uint* colors, VD_GLOBAL const int* tris) {
+  vd_uint t = ids[i];
+  vd_float4 b = bary[i];
+  return b.x * vd_rgba_luma(colors[tris[3 * t]]) + b.y * vd_rgba_luma(colors[tris[3 * t + 1]]) +
+         b.z * vd_rgba_luma(colors[tris[3 * t + 2]]);
+}
+
+/* Pixel i's colour row, from its depth row (canonical sample and w_c; no row where that has none). */
+VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_row, VD_GLOBAL const vd_float4* model_v,
+                                                VD_GLOBAL const vd_float4* obs_v,
+                                                VD_GLOBAL const vd_uint* ids, VD_GLOBAL const vd_float4* bary,
+                                                VD_GLOBAL const vd_uint* colors, VD_GLOBAL const int* tris,
+                                                VD_GLOBAL const float* intensity, VdPhotoParams prm) {
+  VdCorrespondence c;
+  c.canonical = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  c.target = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  c.normal = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  int w = prm.cam.width, x = i % w, y = i / w;
+  if (!(depth_row.canonical.w > 0.0f) || !vd_photo_depth_smooth(obs_v, x, y, prm)) return c;
+  float gx = 0.5f * (intensity[i + 1] - intensity[i - 1]);
+  float gy = 0.5f * (intensity[i + w] - intensity[i - w]);
+  if (!(gx * gx + gy * gy >= prm.min_gradient * prm.min_gradient)) return c;
+  vd_float4 p = model_v[i];
+  if (!(p.z > 0.0f)) return c;
+  float iz = 1.0f / p.z;
+  float gu = gx * prm.cam.fx * iz, gv = gy * prm.cam.fy * iz;
+  vd_float4 n = vd_pose_rotate(prm.cam_to_world, VD_F4(gu, gv, -(gu * p.x + gv * p.y) * iz, 0.0f)) * prm.scale;
+  float nn = vd_dot3(n, n);
+  if (!(nn > 0.0f)) return c;
+  float r = intensity[i] - vd_model_luma(i, ids, bary, colors, tris);
+  float ar = fabs(r);
+  float huber = ar > prm.huber ? prm.huber / ar : 1.0f;
+  vd_float4 s0 = vd_pose_apply(prm.cam_to_world, p);
+  c.canonical = depth_row.canonical;
+  c.canonical.w = depth_row.canonical.w * huber;
+  c.normal = n;
+  c.target = s0 - n * (prm.scale * r / nn);
+  c.target.w = 0.0f;
+  /* A strong edge is where the linearisation holds least: its row weighs at most max_strength of a
+   * depth row (the same zero, a smaller slope). */
+  if (nn > prm.max_strength * prm.max_strength) c.normal = n * (prm.max_strength / sqrt(nn));
   return c;
 }
 

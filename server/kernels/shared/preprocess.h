@@ -87,4 +87,42 @@ VD_INLINE vd_float4 vd_normal_pixel(VD_GLOBAL const vd_float4* vmap, int width, 
   return n;
 }
 
+/* Luma of a packed colour pixel (R in the low byte, then G and B, as frames are uploaded and the
+ * volume's colour is fused), in [0, 1] (ITU-R BT.601 weights). */
+VD_INLINE float vd_rgba_luma(vd_uint c) {
+  return (0.299f * (float)(c & 255u) + 0.587f * (float)((c >> 8) & 255u) + 0.114f * (float)((c >> 16) & 255u)) *
+         (1.0f / 255.0f);
+}
+
+/* The intensity image of the dense colour term (shared/correspondence.h vd_photometric_pixel):
+ * luma smoothed by VD_INTENSITY_BLUR_PASSES passes of the 5-tap binomial (1 4 6 4 1) / 16 along
+ * each axis (sigma 1 px each, sqrt(3) px in all), taps clamped at the image's edge. The model's
+ * colour is a 4 mm grid's, about 2.3 px at 0.9 m: an image sharper than that leaves residuals the
+ * model cannot explain. Measured (docs/BENCHMARKS.md "Session 28"), with the same weight: 1 pass
+ * tube drift 1.31 mm, cloth 1.33; 2 passes 1.00 / 1.37; 3 passes 0.93 / 1.44; 5 passes 0.96 /
+ * 1.61 (0 = no colour term: 1.09 / 2.23). The first horizontal pass reads the packed colour. */
+#define VD_INTENSITY_BLUR_PASSES 3
+VD_INLINE float vd_luma_hblur_pixel(VD_GLOBAL const vd_uint* rgba, int width, int x, int y) {
+  VD_GLOBAL const vd_uint* row = rgba + y * width;
+  float s = 6.0f * vd_rgba_luma(row[x]);
+  s += 4.0f * (vd_rgba_luma(row[vd_max_i(x - 1, 0)]) + vd_rgba_luma(row[vd_min_i(x + 1, width - 1)]));
+  s += vd_rgba_luma(row[vd_max_i(x - 2, 0)]) + vd_rgba_luma(row[vd_min_i(x + 2, width - 1)]);
+  return s * (1.0f / 16.0f);
+}
+
+VD_INLINE float vd_hblur_pixel(VD_GLOBAL const float* in, int width, int x, int y) {
+  VD_GLOBAL const float* row = in + y * width;
+  float s = 6.0f * row[x];
+  s += 4.0f * (row[vd_max_i(x - 1, 0)] + row[vd_min_i(x + 1, width - 1)]);
+  s += row[vd_max_i(x - 2, 0)] + row[vd_min_i(x + 2, width - 1)];
+  return s * (1.0f / 16.0f);
+}
+
+VD_INLINE float vd_vblur_pixel(VD_GLOBAL const float* in, int width, int height, int x, int y) {
+  float s = 6.0f * in[y * width + x];
+  s += 4.0f * (in[vd_max_i(y - 1, 0) * width + x] + in[vd_min_i(y + 1, height - 1) * width + x]);
+  s += in[vd_max_i(y - 2, 0) * width + x] + in[vd_min_i(y + 2, height - 1) * width + x];
+  return s * (1.0f / 16.0f);
+}
+
 #endif /* VD_PREPROCESS_H */

@@ -250,6 +250,10 @@ bool Engine::SparseEnabled() const {
   return params_.features.enabled && !params_.rigid_only && params_.nonrigid_outer_iterations > 0;
 }
 
+bool Engine::PhotometricEnabled() const {
+  return params_.solver.w_photo > 0.f && !params_.rigid_only && params_.nonrigid_outer_iterations > 0;
+}
+
 void Engine::Prefetch(const RgbdFrame& next) {
   if (!next.Validate().ok()) return;
   if (SparseEnabled()) extractor_.Prefetch(next);
@@ -686,6 +690,11 @@ Status Engine::Preprocess(ocl::Context& ctx, DeviceOps& ops, const RgbdFrame& fr
   } else {
     VD_RETURN_IF_ERROR(ctx.Copy(m.depth_raw_m, m.depth[0], n));
   }
+  if (PhotometricEnabled()) {
+    VD_RETURN_IF_ERROR(ctx.Reserve(&m.intensity, n));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&m.intensity_tmp, n));
+    VD_RETURN_IF_ERROR(ops.Intensity(m.rgba, m.intensity_tmp, m.intensity, k.width, k.height));
+  }
   for (int l = 0; l < 3; ++l) {
     const VdCamera cl = ScaledCamera(m.cam, l);
     if (l > 0)
@@ -916,9 +925,12 @@ Status Engine::NonRigid(FrameResult* result) {
   sparse_host_.clear();
   if (!matches_.empty() && params_.solver.w_dense > 0.f)
     AppendSparseConstraints(matches_, params_.features.w_sparse / params_.solver.w_dense, &sparse_host_);
-  const size_t total = pixels + sparse_host_.size();
+  // The dense colour rows, when on, follow the depth rows pixel for pixel.
+  const bool photo = PhotometricEnabled() && maps_.intensity.size() >= pixels;
+  const size_t dense_rows = photo ? 2 * pixels : pixels;
+  const size_t total = dense_rows + sparse_host_.size();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, total));
-  VD_RETURN_IF_ERROR(ctx_->Upload(corr_, sparse_host_.data(), sparse_host_.size(), pixels));
+  VD_RETURN_IF_ERROR(ctx_->Upload(corr_, sparse_host_.data(), sparse_host_.size(), dense_rows));
   VdCorrParams cp{};
   cp.eps_d = params_.corr_eps_d;
   cp.eps_n = params_.corr_eps_n;
@@ -934,6 +946,18 @@ Status Engine::NonRigid(FrameResult* result) {
     }
     VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
     VD_RETURN_IF_ERROR(ops_.Correspondences(live_, maps_.vmap[0], maps_.nmap[0], mesh_, cp, corr_));
+    if (photo) {
+      VdPhotoParams pp{};
+      pp.cam_to_world = cp.cam_to_world;
+      pp.cam = cam_;
+      pp.scale = params_.solver.w_photo;
+      pp.huber = params_.solver.photo_huber;
+      pp.min_gradient = params_.solver.photo_min_gradient;
+      pp.max_jump = params_.normal_max_jump;
+      pp.max_strength = params_.solver.photo_max_strength;
+      pp.edge_radius = kPhotoEdgeRadius;
+      VD_RETURN_IF_ERROR(ops_.PhotometricCorrespondences(live_, maps_.vmap[0], mesh_, maps_.intensity, pp, corr_));
+    }
     const bool energies = nonrigid_solves_++ % params_.solver.energy_interval == 0;
     SolverSummary summary;
     if (bricks_) {

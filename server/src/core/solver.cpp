@@ -17,6 +17,13 @@ constexpr int kChunk = 256;
 void SolverParams::Bind(FlagParser* f) {
   f->Add("w-dense", &w_dense, "Weight w_d of the dense point-to-plane term (paper eq. 1)");
   f->Add("w-reg", &w_reg, "Weight w_r of the as-rigid-as-possible prior (paper eq. 1)");
+  f->Add("w-photo", &w_photo,
+         "Dense colour term: metres of point-to-plane error one unit of intensity (black to white) weighs as "
+         "(0 = off)");
+  f->Add("photo-max-strength", &photo_max_strength, "A colour row weighs at most this much of a depth row");
+  f->Add("photo-huber", &photo_huber, "Intensity residual beyond which a colour row weighs linearly (Huber)");
+  f->Add("photo-min-gradient", &photo_min_gradient,
+         "Colour rows whose smoothed intensity changes by less than this per pixel are dropped");
   f->Add("damping", &damping, "Damping towards the current positions, relative to w_reg");
   f->Add("levels", &levels, "Levels of the non-rigid solver's coarse-to-fine hierarchy (1 = fine grid only)");
   f->Add("flip-flop-iterations", &flip_flop_iterations, "Flip-flop iterations on the fine level per outer iteration");
@@ -41,6 +48,13 @@ void SolverParams::Bind(FlagParser* f) {
 Status SolverParams::Validate() const {
   if (!(w_dense > 0.f && w_dense < 1e6f)) return ParamOutOfBounds("SolverParams", "w_dense", w_dense, "0 < w_dense < 1e6");
   if (!(w_reg > 0.f && w_reg < 1e6f)) return ParamOutOfBounds("SolverParams", "w_reg", w_reg, "0 < w_reg < 1e6");
+  if (!(w_photo >= 0.f && w_photo <= 10.f)) return ParamOutOfBounds("SolverParams", "w_photo", w_photo, "0 <= w_photo <= 10 m");
+  if (!(photo_max_strength > 0.f && photo_max_strength <= 100.f))
+    return ParamOutOfBounds("SolverParams", "photo_max_strength", photo_max_strength, "0 < strength <= 100");
+  if (!(photo_huber > 0.f && photo_huber <= 1.f))
+    return ParamOutOfBounds("SolverParams", "photo_huber", photo_huber, "0 < huber <= 1");
+  if (!(photo_min_gradient >= 0.f && photo_min_gradient < 1.f))
+    return ParamOutOfBounds("SolverParams", "photo_min_gradient", photo_min_gradient, "0 <= gradient < 1");
   if (!(damping > 0.f && damping < 1.f)) return ParamOutOfBounds("SolverParams", "damping", damping, "0 < damping < 1");
   if (!(flip_flop_iterations >= 1 && flip_flop_iterations <= 100))
     return ParamOutOfBounds("SolverParams", "flip_flop_iterations", flip_flop_iterations, "1 <= n <= 100");

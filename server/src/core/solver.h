@@ -20,6 +20,22 @@ struct SolverParams {
   // "Session 26").
   float w_dense = 1.f;
   float w_reg = 3.f;
+  // The dense colour term (shared/correspondence.h vd_photometric_pixel; beyond the paper): the
+  // metres of point-to-plane error one unit of intensity (black to white) weighs as, 0 = off. It
+  // pins the motion along the surface that depth cannot see wherever the surface has texture.
+  // Measured, 60 frames (bend 150) (docs/BENCHMARKS.md "Session 28"): drift tube 1.09 -> 0.99 mm,
+  // cloth 2.23 -> 1.46, bend 7.17 -> 5.69, rigid 0.69 -> 0.71.
+  float w_photo = 0.03f;
+  // A colour row weighs at most this much of a depth row: strong edges are where the linearisation
+  // holds least. Without the cap (at 0.03) the deforming scenes gain more (tube 0.90, cloth 1.29,
+  // bend 4.09 mm) but the rigid scene's drift grows 0.69 -> 0.86 mm.
+  float photo_max_strength = 0.5f;
+  // Intensity residual beyond which a colour row weighs linearly (Huber): occlusions, highlights
+  // and lighting changes.
+  float photo_huber = 0.1f;
+  // Colour rows whose smoothed intensity changes by less than this per pixel are dropped (no
+  // texture there: they would only cost time).
+  float photo_min_gradient = 0.002f;
   // Damping towards the current positions, relative to w_reg: keeps parts without data still.
   float damping = 1e-4f;
   // Flip-flop iterations (position step + rotation step) per solve, on the finest level; with the

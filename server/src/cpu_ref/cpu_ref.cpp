@@ -26,6 +26,21 @@ void Bilateral(const float* in, float* out, int width, int height, int radius, f
   for (int i = 0; i < width * height; ++i) out[i] = vd_bilateral_pixel(in, width, height, i % width, i / width, radius, is, id);
 }
 
+void Intensity(const uint32_t* rgba, float* out, int width, int height) {
+  const int n = width * height;
+  std::vector<float> tmp(static_cast<size_t>(n));
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) tmp[i] = vd_luma_hblur_pixel(rgba, width, i % width, i / width);
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i) out[i] = vd_vblur_pixel(tmp.data(), width, height, i % width, i / width);
+  for (int pass = 1; pass < VD_INTENSITY_BLUR_PASSES; ++pass) {
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; ++i) tmp[i] = vd_hblur_pixel(out, width, i % width, i / width);
+#pragma omp parallel for schedule(static)
+    for (int i = 0; i < n; ++i) out[i] = vd_vblur_pixel(tmp.data(), width, height, i % width, i / width);
+  }
+}
+
 void PyrDown(const float* in, float* out, int width, int height, float max_diff) {
   const int ow = width / 2, oh = height / 2;
 #pragma omp parallel for schedule(static)
@@ -281,6 +296,16 @@ void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_f
   for (int i = 0; i < n; ++i)
     out[i] = vd_correspondence_pixel(i, model.vertex.data(), model.normal.data(), model.ids.data(), model.bary.data(),
                                      obs_v, obs_n, canonical_grid, triangles, params);
+}
+
+void PhotometricCorrespondences(const RasterMaps& model, const vd_float4* obs_v, const uint32_t* colors,
+                                const int32_t* triangles, const float* intensity, VdPhotoParams params,
+                                VdCorrespondence* rows) {
+  const int n = params.cam.width * params.cam.height;
+#pragma omp parallel for schedule(static)
+  for (int i = 0; i < n; ++i)
+    rows[n + i] = vd_photometric_pixel(i, rows[i], model.vertex.data(), obs_v, model.ids.data(), model.bary.data(),
+                                       colors, triangles, intensity, params);
 }
 
 void IcpReduce(const vd_float4* vmap, const vd_float4* nmap, const vd_float4* model_v, const vd_float4* model_n,

@@ -20,6 +20,8 @@ void Bilateral(const float* in, float* out, int width, int height, int radius, f
 void PyrDown(const float* in, float* out, int width, int height, float max_diff);
 void VertexMap(const float* depth, vd_float4* vmap, VdCamera cam);
 void NormalMap(const vd_float4* vmap, vd_float4* nmap, int width, int height, float max_jump);
+// The dense colour term's intensity image: smoothed luma of packed colour (shared/preprocess.h).
+void Intensity(const uint32_t* rgba, float* out, int width, int height);
 
 void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,
                    const float* depth, const uint32_t* rgba);
@@ -101,6 +103,12 @@ void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32
 void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_float4* obs_n,
                      const vd_float4* canonical_grid, const int32_t* triangles, VdCorrParams params, int n,
                      VdCorrespondence* out);
+
+// The dense colour term's rows (shared/correspondence.h vd_photometric_pixel): rows[n + i] from the
+// depth row rows[i] of each of the n = width x height pixels; colors per vertex of `triangles`.
+void PhotometricCorrespondences(const RasterMaps& model, const vd_float4* obs_v, const uint32_t* colors,
+                                const int32_t* triangles, const float* intensity, VdPhotoParams params,
+                                VdCorrespondence* rows);
 
 // Sums the ICP normal equations over all pixels in double precision.
 void IcpReduce(const vd_float4* vmap, const vd_float4* nmap, const vd_float4* model_v, const vd_float4* model_n,

@@ -139,6 +139,10 @@ class DeviceOps {
   Status VertexMap(const ocl::Buffer<float>& depth, ocl::Buffer<vd_float4>& vmap, VdCamera cam);
   Status NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_float4>& nmap, int width, int height,
                    float max_jump);
+  // The dense colour term's intensity image (shared/preprocess.h): luma of the packed colour
+  // smoothed by VD_INTENSITY_BLUR_PASSES binomial passes, through `tmp` (both width x height).
+  Status Intensity(const ocl::Buffer<uint32_t>& rgba, ocl::Buffer<float>& tmp, ocl::Buffer<float>& out, int width,
+                   int height);
 
   Status AllocVolume(const VdVolume& vol, bool with_deformation, DeviceVolume* out);
   Status ResetVolume(DeviceVolume& v);
@@ -176,6 +180,12 @@ class DeviceOps {
   Status Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
                          const ocl::Buffer<vd_float4>& obs_n, const DeviceMesh& mesh, const VdCorrParams& params,
                          ocl::Buffer<VdCorrespondence>& out);
+  // The dense colour term's rows (shared/correspondence.h vd_photometric_pixel): rows[n + i] from
+  // the depth row rows[i] of each of the raster's n pixels, the model's colour from mesh.colors.
+  Status PhotometricCorrespondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
+                                    const DeviceMesh& mesh,
+                                    const ocl::Buffer<float>& intensity, const VdPhotoParams& params,
+                                    ocl::Buffer<VdCorrespondence>& rows);
   // Applies the rigid motion a (rotation q_a) to every optimised grid point's position and rotation.
   Status TransformField(DeviceVolume& v, const VdPose& a, vd_float4 q_a);
   // The same on a brick pool's field (every slot's voxels).

@@ -32,4 +32,16 @@ Status DeviceOps::NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_f
   return ocl::kNormalMap(*ctx_, static_cast<size_t>(width) * height, vmap, nmap, width, height, max_jump);
 }
 
+Status DeviceOps::Intensity(const ocl::Buffer<uint32_t>& rgba, ocl::Buffer<float>& tmp, ocl::Buffer<float>& out,
+                            int width, int height) {
+  const size_t n = static_cast<size_t>(width) * height;
+  VD_RETURN_IF_ERROR(ocl::kLumaHBlur(*ctx_, n, rgba, tmp, width));
+  VD_RETURN_IF_ERROR(ocl::kVBlur(*ctx_, n, tmp, out, width, height));
+  for (int k = 1; k < VD_INTENSITY_BLUR_PASSES; ++k) {
+    VD_RETURN_IF_ERROR(ocl::kHBlur(*ctx_, n, out, tmp, width));
+    VD_RETURN_IF_ERROR(ocl::kVBlur(*ctx_, n, tmp, out, width, height));
+  }
+  return Status::Ok();
+}
+
 }  // namespace vd
