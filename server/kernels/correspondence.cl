@@ -11,10 +11,10 @@ __kernel void vd_correspondences(__global const float4* model_v, __global const 
 
 /* The colour rows after the image's depth rows: out[vd_items + i] from out[i]. */
 __kernel void vd_photometric_correspondences(__global const float4* model_v, __global const float4* obs_v,
-                                             __global const uint* ids,
-                                             __global const float4* bary, __global const uint* colors,
-                                             __global const int* tris, __global const float* intensity,
-                                             VdPhotoParams prm, __global VdCorrespondence* out, int vd_items) {
+                                             __global const uint* ids, __global const float4* bary,
+                                             __global const uint* colors, __global const int* tris,
+                                             __global const float* intensity, VdPhotoParams prm,
+                                             __global VdCorrespondence* out, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
   out[vd_items + i] = vd_photometric_pixel(i, out[i], model_v, obs_v, ids, bary, colors, tris, intensity, prm);

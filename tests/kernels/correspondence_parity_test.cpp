@@ -80,7 +80,8 @@ struct ColourRowScene {
       rows[i] = VdCorrespondence{};
       rows[i].canonical = VD_F4(1.f, 2.f, 3.f, 0.8f);
     }
-    cpu::PhotometricCorrespondences(model, obs_v.data(), colors.data(), tris.data(), intensity.data(), prm, rows.data());
+    cpu::PhotometricCorrespondences(model, obs_v.data(), colors.data(), tris.data(), intensity.data(), prm,
+                                    rows.data());
     return rows;
   }
 };

@@ -1,7 +1,7 @@
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdlib>
-
-#include <gtest/gtest.h>
 
 #include "cpu_ref/cpu_ref.h"
 #include "ocl/device_ops.h"

@@ -101,7 +101,8 @@ VD_INLINE int vd_photo_depth_smooth(VD_GLOBAL const vd_float4* obs_v, int x, int
   float z = obs_v[y * w + x].z, lim = prm.max_jump * z;
   if (!(obs_v[y * w + x].w > 0.0f)) return 0;
   for (int k = 1; k <= r; k *= 2) {
-    vd_float4 a = obs_v[y * w + x - k], b = obs_v[y * w + x + k], c = obs_v[(y - k) * w + x], d = obs_v[(y + k) * w + x];
+    vd_float4 a = obs_v[y * w + x - k], b = obs_v[y * w + x + k], c = obs_v[(y - k) * w + x],
+              d = obs_v[(y + k) * w + x];
     if (a.w == 0.0f || b.w == 0.0f || c.w == 0.0f || d.w == 0.0f) return 0;
     if (fabs(a.z - z) > lim || fabs(b.z - z) > lim || fabs(c.z - z) > lim || fabs(d.z - z) > lim) return 0;
   }
@@ -120,10 +121,10 @@ VD_INLINE float vd_model_luma(int i, VD_GLOBAL const vd_uint* ids, VD_GLOBAL con
 
 /* Pixel i's colour row, from its depth row (canonical sample and w_c; no row where that has none). */
 VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_row, VD_GLOBAL const vd_float4* model_v,
-                                                VD_GLOBAL const vd_float4* obs_v,
-                                                VD_GLOBAL const vd_uint* ids, VD_GLOBAL const vd_float4* bary,
-                                                VD_GLOBAL const vd_uint* colors, VD_GLOBAL const int* tris,
-                                                VD_GLOBAL const float* intensity, VdPhotoParams prm) {
+                                                VD_GLOBAL const vd_float4* obs_v, VD_GLOBAL const vd_uint* ids,
+                                                VD_GLOBAL const vd_float4* bary, VD_GLOBAL const vd_uint* colors,
+                                                VD_GLOBAL const int* tris, VD_GLOBAL const float* intensity,
+                                                VdPhotoParams prm) {
   VdCorrespondence c;
   c.canonical = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   c.target = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);

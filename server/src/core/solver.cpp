@@ -48,7 +48,8 @@ void SolverParams::Bind(FlagParser* f) {
 Status SolverParams::Validate() const {
   if (!(w_dense > 0.f && w_dense < 1e6f)) return ParamOutOfBounds("SolverParams", "w_dense", w_dense, "0 < w_dense < 1e6");
   if (!(w_reg > 0.f && w_reg < 1e6f)) return ParamOutOfBounds("SolverParams", "w_reg", w_reg, "0 < w_reg < 1e6");
-  if (!(w_photo >= 0.f && w_photo <= 10.f)) return ParamOutOfBounds("SolverParams", "w_photo", w_photo, "0 <= w_photo <= 10 m");
+  if (!(w_photo >= 0.f && w_photo <= 10.f))
+    return ParamOutOfBounds("SolverParams", "w_photo", w_photo, "0 <= w_photo <= 10 m");
   if (!(photo_max_strength > 0.f && photo_max_strength <= 100.f))
     return ParamOutOfBounds("SolverParams", "photo_max_strength", photo_max_strength, "0 < strength <= 100");
   if (!(photo_huber > 0.f && photo_huber <= 1.f))

@@ -15,16 +15,15 @@ Status DeviceOps::Correspondences(const DeviceRaster& model, const ocl::Buffer<v
 }
 
 Status DeviceOps::PhotometricCorrespondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
-                                             const DeviceMesh& mesh,
-                                             const ocl::Buffer<float>& intensity, const VdPhotoParams& params,
-                                             ocl::Buffer<VdCorrespondence>& rows) {
+                                             const DeviceMesh& mesh, const ocl::Buffer<float>& intensity,
+                                             const VdPhotoParams& params, ocl::Buffer<VdCorrespondence>& rows) {
   const size_t n = static_cast<size_t>(model.cam.width) * model.cam.height;
   if (rows.size() < 2 * n) return OutOfRange("correspondence buffer smaller than two rows per pixel");
   if (intensity.size() < n) return OutOfRange("intensity image smaller than the raster");
   if (params.cam.width != model.cam.width || params.cam.height != model.cam.height)
     return InvalidArgument("colour rows: camera and raster sizes differ");
-  return ocl::kPhotometricCorrespondences(*ctx_, n, model.vertex, obs_v, model.ids, model.bary, mesh.colors, mesh.triangles,
-                                          intensity, params, rows);
+  return ocl::kPhotometricCorrespondences(*ctx_, n, model.vertex, obs_v, model.ids, model.bary, mesh.colors,
+                                          mesh.triangles, intensity, params, rows);
 }
 
 }  // namespace vd

@@ -19,7 +19,7 @@ inline constexpr Kernel<void(const Buffer<vd_float4>& model_v, const Buffer<vd_f
 inline constexpr Kernel<void(const Buffer<vd_float4>& model_v, const Buffer<vd_float4>& obs_v,
                              const Buffer<uint32_t>& ids, const Buffer<vd_float4>& bary, const Buffer<uint32_t>& colors,
                              const Buffer<int32_t>& tris, const Buffer<float>& intensity, VdPhotoParams prm,
-                             Buffer<VdCorrespondence>& out)> kPhotometricCorrespondences{
-    "vd_photometric_correspondences"};
+                             Buffer<VdCorrespondence>& out)>
+    kPhotometricCorrespondences{"vd_photometric_correspondences"};
 
 }  // namespace vd::ocl

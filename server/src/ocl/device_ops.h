@@ -183,9 +183,8 @@ class DeviceOps {
   // The dense colour term's rows (shared/correspondence.h vd_photometric_pixel): rows[n + i] from
   // the depth row rows[i] of each of the raster's n pixels, the model's colour from mesh.colors.
   Status PhotometricCorrespondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
-                                    const DeviceMesh& mesh,
-                                    const ocl::Buffer<float>& intensity, const VdPhotoParams& params,
-                                    ocl::Buffer<VdCorrespondence>& rows);
+                                    const DeviceMesh& mesh, const ocl::Buffer<float>& intensity,
+                                    const VdPhotoParams& params, ocl::Buffer<VdCorrespondence>& rows);
   // Applies the rigid motion a (rotation q_a) to every optimised grid point's position and rotation.
   Status TransformField(DeviceVolume& v, const VdPose& a, vd_float4 q_a);
   // The same on a brick pool's field (every slot's voxels).
