@@ -94,10 +94,10 @@ __kernel void vd_normal_map(__global const float4* vmap, __global float4* nmap, 
   nmap[i] = vd_normal_pixel(vmap, width, height, i % width, i / width, max_jump);
 }
 
-__kernel void vd_luma_hblur(__global const uint* rgba, __global float* out, int width, int vd_items) {
+__kernel void vd_luma_half(__global const uint* rgba, __global float* out, int in_width, int out_width, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
-  out[i] = vd_luma_hblur_pixel(rgba, width, i % width, i / width);
+  out[i] = vd_luma_half_pixel(rgba, in_width, i % out_width, i / out_width);
 }
 
 __kernel void vd_vblur(__global const float* in, __global float* out, int width, int height, int vd_items) {

@@ -55,7 +55,7 @@ struct ColourRowScene {
     for (int i = 0; i < n; ++i)
       model.vertex[i] = VD_F4((i % cam.width - cam.cx) / cam.fx, (i / cam.width - cam.cy) / cam.fy, 1.f, 1.f);
     obs_v = model.vertex;
-    intensity.assign(n, 0.f);
+    intensity.assign(n / 4, 0.f);
     // 30 degrees about y, then 10 cm along x.
     const float c = std::cos(0.5236f), s = std::sin(0.5236f);
     prm.cam_to_world.r0 = VD_F4(c, 0.f, s, 0.1f);
@@ -69,10 +69,13 @@ struct ColourRowScene {
     prm.max_jump = 0.05f;
     prm.edge_radius = 4;
   }
-  // The intensity I(u, v) = 100 / 255 + offset + gu (u - 30) + gv (v - 20).
+  // The intensity I(u, v) = 100 / 255 + offset + gu (u - 30) + gv (v - 20) at full-resolution
+  // pixels; the image is kept at half resolution, whose pixel (x, y) is centred at (2x + 1/2, 2y + 1/2).
   void Ramp(float offset, float gu, float gv) {
-    for (int i = 0; i < n; ++i)
-      intensity[i] = 100.f / 255.f + offset + gu * float(i % cam.width - 30) + gv * float(i / cam.width - 20);
+    const int hw = cam.width / 2;
+    for (int i = 0; i < hw * (cam.height / 2); ++i)
+      intensity[i] = 100.f / 255.f + offset + gu * (2.f * float(i % hw) + 0.5f - 30.f) +
+                     gv * (2.f * float(i / hw) + 0.5f - 20.f);
   }
   std::vector<VdCorrespondence> Rows() const {
     std::vector<VdCorrespondence> rows(2 * size_t(n));
@@ -236,7 +239,7 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
     const int g = int(127.5f + 120.f * std::sin(0.7f * float(k % cam.width)) * std::cos(0.45f * float(k / cam.width)));
     rgba[k] = Rgba(g, 255 - g, g / 2);
   }
-  std::vector<float> intensity(n);
+  std::vector<float> intensity(n / 4);
   cpu::Intensity(rgba.data(), intensity.data(), cam.width, cam.height);
   VdPhotoParams pp{};
   pp.cam_to_world = prm.cam_to_world;
@@ -258,7 +261,7 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
   EXPECT_LT(colour_rows, valid);
   dm.colors = test::ToDevice(ctx, mc.colors);
   auto drgba = test::ToDevice(ctx, rgba);
-  auto tmp = ctx->Alloc<float>(n), dint = ctx->Alloc<float>(n);
+  auto tmp = ctx->Alloc<float>(n / 4), dint = ctx->Alloc<float>(n / 4);
   auto drows = ctx->Alloc<VdCorrespondence>(2 * size_t(n));
   ASSERT_TRUE(tmp.ok() && dint.ok() && drows.ok());
   ASSERT_TRUE(ops.Intensity(drgba, *tmp, *dint, cam.width, cam.height).ok());

@@ -73,40 +73,47 @@ TEST(PreprocessParityTest, ConvertBilateralPyramidVertexNormalMatchCpu) {
 // Packs 8-bit R, G, B as the frames are uploaded (R in the low byte, alpha 255).
 uint32_t Rgba(int r, int g, int b) { return uint32_t(r) | uint32_t(g) << 8 | uint32_t(b) << 16 | 255u << 24; }
 
-TEST(PreprocessParityTest, IntensityIsSmoothedLumaAndMatchesCpu) {
+TEST(PreprocessParityTest, IntensityIsSmoothedHalfResolutionLumaAndMatchesCpu) {
   VD_REQUIRE_OCL(ctx);
   DeviceOps ops(ctx);
   ASSERT_TRUE(ops.Init().ok());
-  // An odd size, so rows do not line up with any vector width; random colours.
-  const int w = 97, h = 61, n = w * h;
+  // An odd size, so rows do not line up with any vector width (and the last column has no
+  // 2x2 block); random colours.
+  const int w = 97, h = 61, n = w * h, hw = w / 2, hh = h / 2, m = hw * hh;
   std::vector<uint32_t> rgba(n);
   std::srand(7);
   for (uint32_t& c : rgba) c = Rgba(std::rand() % 256, std::rand() % 256, std::rand() % 256);
-  std::vector<float> ref(n);
+  std::vector<float> ref(m);
   cpu::Intensity(rgba.data(), ref.data(), w, h);
   auto drgba = test::ToDevice(ctx, rgba);
-  auto tmp = ctx->Alloc<float>(n), out = ctx->Alloc<float>(n);
+  auto tmp = ctx->Alloc<float>(m), out = ctx->Alloc<float>(m);
   ASSERT_TRUE(tmp.ok() && out.ok());
   ASSERT_TRUE(ops.Intensity(drgba, *tmp, *out, w, h).ok());
-  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, *out, n), ref, 1e-6f, 1e-6f));
+  EXPECT_TRUE(test::AllClose(test::FromDevice(ctx, *out, m), ref, 1e-6f, 1e-6f));
   // Smoothing: the noise's spread falls (uniform luma has a standard deviation near 0.2).
   double mean = 0, var = 0;
-  for (float v : ref) mean += v / n;
-  for (float v : ref) var += (v - mean) * (v - mean) / n;
+  for (float v : ref) mean += v / m;
+  for (float v : ref) var += (v - mean) * (v - mean) / m;
   EXPECT_NEAR(mean, 0.5, 0.02);
   EXPECT_LT(std::sqrt(var), 0.06);
+  // Buffers too small for half resolution are refused.
+  auto small = ctx->Alloc<float>(m - 1);
+  ASSERT_TRUE(small.ok());
+  EXPECT_FALSE(ops.Intensity(drgba, *tmp, *small, w, h).ok());
 
-  // BT.601 luma: pure red, green and blue, and a uniform image keeps its value everywhere.
+  // BT.601 luma: pure red, green and blue.
   EXPECT_NEAR(vd_rgba_luma(Rgba(255, 0, 0)), 0.299f, 1e-6f);
   EXPECT_NEAR(vd_rgba_luma(Rgba(0, 255, 0)), 0.587f, 1e-6f);
   EXPECT_NEAR(vd_rgba_luma(Rgba(0, 0, 255)), 0.114f, 1e-6f);
-  // A horizontal ramp stays a ramp of the same slope away from the edges (the blur is symmetric),
-  // so the colour term's central differences see the true gradient there.
+  // A horizontal ramp stays the same ramp away from the edges (the blur is symmetric), and sampled
+  // back at full-resolution pixels it is the image's own value: the colour term's central
+  // differences see the true gradient.
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x) rgba[y * w + x] = Rgba(2 * x, 2 * x, 2 * x);
   cpu::Intensity(rgba.data(), ref.data(), w, h);
-  for (int y = 0; y < h; ++y)
-    for (int x = 10; x < w - 10; ++x) ASSERT_NEAR(ref[y * w + x], 2.f * x / 255.f, 1e-5f) << x << "," << y;
+  for (int y = 0; y < h - 1; ++y)
+    for (int x = 10; x < w - 10; ++x)
+      ASSERT_NEAR(vd_intensity_at(ref.data(), hw, hh, float(x), float(y)), 2.f * x / 255.f, 1e-5f) << x << "," << y;
 }
 
 TEST(PreprocessParityTest, BilateralIsTheSameAtEveryLaneWidth) {

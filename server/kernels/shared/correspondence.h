@@ -131,8 +131,10 @@ VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_ro
   c.normal = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   int w = prm.cam.width, x = i % w, y = i / w;
   if (!(depth_row.canonical.w > 0.0f) || !vd_photo_depth_smooth(obs_v, x, y, prm)) return c;
-  float gx = 0.5f * (intensity[i + 1] - intensity[i - 1]);
-  float gy = 0.5f * (intensity[i + w] - intensity[i - w]);
+  int hw = w / 2, hh = prm.cam.height / 2;
+  float fx = (float)x, fy = (float)y;
+  float gx = 0.5f * (vd_intensity_at(intensity, hw, hh, fx + 1.0f, fy) - vd_intensity_at(intensity, hw, hh, fx - 1.0f, fy));
+  float gy = 0.5f * (vd_intensity_at(intensity, hw, hh, fx, fy + 1.0f) - vd_intensity_at(intensity, hw, hh, fx, fy - 1.0f));
   if (!(gx * gx + gy * gy >= prm.min_gradient * prm.min_gradient)) return c;
   vd_float4 p = model_v[i];
   if (!(p.z > 0.0f)) return c;
@@ -141,7 +143,7 @@ VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_ro
   vd_float4 n = vd_pose_rotate(prm.cam_to_world, VD_F4(gu, gv, -(gu * p.x + gv * p.y) * iz, 0.0f)) * prm.scale;
   float nn = vd_dot3(n, n);
   if (!(nn > 0.0f)) return c;
-  float r = intensity[i] - vd_model_luma(i, ids, bary, colors, tris);
+  float r = vd_intensity_at(intensity, hw, hh, fx, fy) - vd_model_luma(i, ids, bary, colors, tris);
   float ar = fabs(r);
   float huber = ar > prm.huber ? prm.huber / ar : 1.0f;
   vd_float4 s0 = vd_pose_apply(prm.cam_to_world, p);

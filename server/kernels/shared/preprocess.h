@@ -94,20 +94,35 @@ VD_INLINE float vd_rgba_luma(vd_uint c) {
          (1.0f / 255.0f);
 }
 
-/* The intensity image of the dense colour term (shared/correspondence.h vd_photometric_pixel):
- * luma smoothed by VD_INTENSITY_BLUR_PASSES passes of the 5-tap binomial (1 4 6 4 1) / 16 along
- * each axis (sigma 1 px each, sqrt(3) px in all), taps clamped at the image's edge. The model's
- * colour is a 4 mm grid's, about 2.3 px at 0.9 m: an image sharper than that leaves residuals the
- * model cannot explain. Measured (docs/BENCHMARKS.md "Session 28"), with the same weight: 1 pass
- * tube drift 1.31 mm, cloth 1.33; 2 passes 1.00 / 1.37; 3 passes 0.93 / 1.44; 5 passes 0.96 /
- * 1.61 (0 = no colour term: 1.09 / 2.23). The first horizontal pass reads the packed colour. */
-#define VD_INTENSITY_BLUR_PASSES 3
-VD_INLINE float vd_luma_hblur_pixel(VD_GLOBAL const vd_uint* rgba, int width, int x, int y) {
-  VD_GLOBAL const vd_uint* row = rgba + y * width;
-  float s = 6.0f * vd_rgba_luma(row[x]);
-  s += 4.0f * (vd_rgba_luma(row[vd_max_i(x - 1, 0)]) + vd_rgba_luma(row[vd_min_i(x + 1, width - 1)]));
-  s += vd_rgba_luma(row[vd_max_i(x - 2, 0)]) + vd_rgba_luma(row[vd_min_i(x + 2, width - 1)]);
-  return s * (1.0f / 16.0f);
+/* The intensity image of the dense colour term (shared/correspondence.h vd_photometric_pixel), at
+ * half resolution: the luma of each 2x2 block, smoothed by the 5-tap binomial (1 4 6 4 1) / 16
+ * along each axis (sigma 1 half-resolution pixel, 2 px of the image), taps clamped at the edge.
+ * The model's colour is a 4 mm grid's, about 2.3 px at 0.9 m: an image sharper than that leaves
+ * residuals the model cannot explain. Measured at full resolution (docs/BENCHMARKS.md "Session
+ * 28"): sigma 1 px gave tube drift 1.31 mm and cloth 1.33, sqrt(3) px 0.93 / 1.44, sqrt(5) px
+ * 0.96 / 1.61 (no colour term: 1.09 / 2.23); half resolution costs a twelfth of the sqrt(3) px
+ * passes. */
+VD_INLINE float vd_luma_half_pixel(VD_GLOBAL const vd_uint* rgba, int width, int x, int y) {
+  int i = 2 * y * width + 2 * x;
+  return 0.25f * (vd_rgba_luma(rgba[i]) + vd_rgba_luma(rgba[i + 1]) + vd_rgba_luma(rgba[i + width]) +
+                  vd_rgba_luma(rgba[i + width + 1]));
+}
+
+/* Bilinear sample of a w x h image at (u, v) (pixel centres at integers), clamped to the image. */
+VD_INLINE float vd_bilinear(VD_GLOBAL const float* img, int w, int h, float u, float v) {
+  u = fmin(fmax(u, 0.0f), (float)(w - 1));
+  v = fmin(fmax(v, 0.0f), (float)(h - 1));
+  int x0 = vd_min_i((int)u, w - 2), y0 = vd_min_i((int)v, h - 2);
+  float a = u - (float)x0, b = v - (float)y0;
+  VD_GLOBAL const float* r0 = img + y0 * w + x0;
+  VD_GLOBAL const float* r1 = r0 + w;
+  return (1.0f - b) * ((1.0f - a) * r0[0] + a * r0[1]) + b * ((1.0f - a) * r1[0] + a * r1[1]);
+}
+
+/* The half-resolution intensity (w x h) at full-resolution pixel (x, y), whose centre lies at
+ * (x / 2 - 1/4, y / 2 - 1/4) there. */
+VD_INLINE float vd_intensity_at(VD_GLOBAL const float* img, int w, int h, float x, float y) {
+  return vd_bilinear(img, w, h, 0.5f * x - 0.25f, 0.5f * y - 0.25f);
 }
 
 VD_INLINE float vd_hblur_pixel(VD_GLOBAL const float* in, int width, int x, int y) {

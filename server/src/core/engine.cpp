@@ -691,8 +691,9 @@ Status Engine::Preprocess(ocl::Context& ctx, DeviceOps& ops, const RgbdFrame& fr
     VD_RETURN_IF_ERROR(ctx.Copy(m.depth_raw_m, m.depth[0], n));
   }
   if (PhotometricEnabled()) {
-    VD_RETURN_IF_ERROR(ctx.Reserve(&m.intensity, n));
-    VD_RETURN_IF_ERROR(ctx.Reserve(&m.intensity_tmp, n));
+    const size_t half = static_cast<size_t>(k.width / 2) * (k.height / 2);
+    VD_RETURN_IF_ERROR(ctx.Reserve(&m.intensity, half));
+    VD_RETURN_IF_ERROR(ctx.Reserve(&m.intensity_tmp, half));
     VD_RETURN_IF_ERROR(ops.Intensity(m.rgba, m.intensity_tmp, m.intensity, k.width, k.height));
   }
   for (int l = 0; l < 3; ++l) {
@@ -926,7 +927,8 @@ Status Engine::NonRigid(FrameResult* result) {
   if (!matches_.empty() && params_.solver.w_dense > 0.f)
     AppendSparseConstraints(matches_, params_.features.w_sparse / params_.solver.w_dense, &sparse_host_);
   // The dense colour rows, when on, follow the depth rows pixel for pixel.
-  const bool photo = PhotometricEnabled() && maps_.intensity.size() >= pixels;
+  const bool photo =
+      PhotometricEnabled() && maps_.intensity.size() >= static_cast<size_t>(cam_.width / 2) * (cam_.height / 2);
   const size_t dense_rows = photo ? 2 * pixels : pixels;
   const size_t total = dense_rows + sparse_host_.size();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, total));

@@ -295,7 +295,8 @@ class Engine {
     std::array<ocl::Buffer<float>, 3> depth;
     std::array<ocl::Buffer<vd_float4>, 3> vmap;
     std::array<ocl::Buffer<vd_float4>, 3> nmap;
-    // The dense colour term's smoothed luma (only when it is on), and its pass's scratch.
+    // The dense colour term's smoothed luma at half resolution (only when it is on), and its
+    // passes' scratch.
     ocl::Buffer<float> intensity;
     ocl::Buffer<float> intensity_tmp;
     std::vector<uint32_t> rgba_host;

@@ -24,11 +24,12 @@ struct SolverParams {
   // metres of point-to-plane error one unit of intensity (black to white) weighs as, 0 = off. It
   // pins the motion along the surface that depth cannot see wherever the surface has texture.
   // Measured, 60 frames (bend 150) (docs/BENCHMARKS.md "Session 28"): drift tube 1.09 -> 0.99 mm,
-  // cloth 2.23 -> 1.46, bend 7.17 -> 5.69, rigid 0.69 -> 0.71.
+  // cloth 2.23 -> 1.52, bend 7.17 -> 5.52, rigid 0.69 -> 0.78 (its non-rigid displacement over 300
+  // frames 0.89 mm, bound 1).
   float w_photo = 0.03f;
   // A colour row weighs at most this much of a depth row: strong edges are where the linearisation
-  // holds least. Without the cap (at 0.03) the deforming scenes gain more (tube 0.90, cloth 1.29,
-  // bend 4.09 mm) but the rigid scene's drift grows 0.69 -> 0.86 mm.
+  // holds least. Without the cap (at 0.03, full-resolution image) the deforming scenes gained more
+  // (tube 0.90, cloth 1.29, bend 4.09 mm) but the rigid scene's drift grew 0.69 -> 0.86 mm.
   float photo_max_strength = 0.5f;
   // Intensity residual beyond which a colour row weighs linearly (Huber): occlusions, highlights
   // and lighting changes.

@@ -27,18 +27,14 @@ void Bilateral(const float* in, float* out, int width, int height, int radius, f
 }
 
 void Intensity(const uint32_t* rgba, float* out, int width, int height) {
-  const int n = width * height;
-  std::vector<float> tmp(static_cast<size_t>(n));
+  const int w = width / 2, h = height / 2, n = w * h;
+  std::vector<float> luma(static_cast<size_t>(n)), tmp(static_cast<size_t>(n));
 #pragma omp parallel for schedule(static)
-  for (int i = 0; i < n; ++i) tmp[i] = vd_luma_hblur_pixel(rgba, width, i % width, i / width);
+  for (int i = 0; i < n; ++i) luma[i] = vd_luma_half_pixel(rgba, width, i % w, i / w);
 #pragma omp parallel for schedule(static)
-  for (int i = 0; i < n; ++i) out[i] = vd_vblur_pixel(tmp.data(), width, height, i % width, i / width);
-  for (int pass = 1; pass < VD_INTENSITY_BLUR_PASSES; ++pass) {
+  for (int i = 0; i < n; ++i) tmp[i] = vd_hblur_pixel(luma.data(), w, i % w, i / w);
 #pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; ++i) tmp[i] = vd_hblur_pixel(out, width, i % width, i / width);
-#pragma omp parallel for schedule(static)
-    for (int i = 0; i < n; ++i) out[i] = vd_vblur_pixel(tmp.data(), width, height, i % width, i / width);
-  }
+  for (int i = 0; i < n; ++i) out[i] = vd_vblur_pixel(tmp.data(), w, h, i % w, i / w);
 }
 
 void PyrDown(const float* in, float* out, int width, int height, float max_diff) {

@@ -20,7 +20,8 @@ void Bilateral(const float* in, float* out, int width, int height, int radius, f
 void PyrDown(const float* in, float* out, int width, int height, float max_diff);
 void VertexMap(const float* depth, vd_float4* vmap, VdCamera cam);
 void NormalMap(const vd_float4* vmap, vd_float4* nmap, int width, int height, float max_jump);
-// The dense colour term's intensity image: smoothed luma of packed colour (shared/preprocess.h).
+// The dense colour term's intensity image, (width / 2) x (height / 2): smoothed luma of packed
+// colour at half resolution (shared/preprocess.h).
 void Intensity(const uint32_t* rgba, float* out, int width, int height);
 
 void IntegrateTsdf(float* tsdf, float* weight, uint32_t* color, VdVolume vol, VdCamera cam, VdPose world_to_cam,

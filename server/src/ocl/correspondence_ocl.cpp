@@ -19,7 +19,8 @@ Status DeviceOps::PhotometricCorrespondences(const DeviceRaster& model, const oc
                                              const VdPhotoParams& params, ocl::Buffer<VdCorrespondence>& rows) {
   const size_t n = static_cast<size_t>(model.cam.width) * model.cam.height;
   if (rows.size() < 2 * n) return OutOfRange("correspondence buffer smaller than two rows per pixel");
-  if (intensity.size() < n) return OutOfRange("intensity image smaller than the raster");
+  if (intensity.size() < static_cast<size_t>(model.cam.width / 2) * (model.cam.height / 2))
+    return OutOfRange("intensity image smaller than half the raster's resolution");
   if (params.cam.width != model.cam.width || params.cam.height != model.cam.height)
     return InvalidArgument("colour rows: camera and raster sizes differ");
   return ocl::kPhotometricCorrespondences(*ctx_, n, model.vertex, obs_v, model.ids, model.bary, mesh.colors,

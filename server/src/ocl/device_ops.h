@@ -139,8 +139,8 @@ class DeviceOps {
   Status VertexMap(const ocl::Buffer<float>& depth, ocl::Buffer<vd_float4>& vmap, VdCamera cam);
   Status NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_float4>& nmap, int width, int height,
                    float max_jump);
-  // The dense colour term's intensity image (shared/preprocess.h): luma of the packed colour
-  // smoothed by VD_INTENSITY_BLUR_PASSES binomial passes, through `tmp` (both width x height).
+  // The dense colour term's intensity image (shared/preprocess.h): the packed colour's luma at half
+  // resolution, smoothed, through `tmp` (both (width / 2) x (height / 2)).
   Status Intensity(const ocl::Buffer<uint32_t>& rgba, ocl::Buffer<float>& tmp, ocl::Buffer<float>& out, int width,
                    int height);
 

@@ -34,14 +34,13 @@ Status DeviceOps::NormalMap(const ocl::Buffer<vd_float4>& vmap, ocl::Buffer<vd_f
 
 Status DeviceOps::Intensity(const ocl::Buffer<uint32_t>& rgba, ocl::Buffer<float>& tmp, ocl::Buffer<float>& out,
                             int width, int height) {
-  const size_t n = static_cast<size_t>(width) * height;
-  VD_RETURN_IF_ERROR(ocl::kLumaHBlur(*ctx_, n, rgba, tmp, width));
-  VD_RETURN_IF_ERROR(ocl::kVBlur(*ctx_, n, tmp, out, width, height));
-  for (int k = 1; k < VD_INTENSITY_BLUR_PASSES; ++k) {
-    VD_RETURN_IF_ERROR(ocl::kHBlur(*ctx_, n, out, tmp, width));
-    VD_RETURN_IF_ERROR(ocl::kVBlur(*ctx_, n, tmp, out, width, height));
-  }
-  return Status::Ok();
+  const int w = width / 2, h = height / 2;
+  const size_t n = static_cast<size_t>(w) * h;
+  if (w < 2 || h < 2) return InvalidArgument("intensity image: the colour image is smaller than 4x4");
+  if (tmp.size() < n || out.size() < n) return OutOfRange("intensity image: buffers smaller than half resolution");
+  VD_RETURN_IF_ERROR(ocl::kLumaHalf(*ctx_, n, rgba, out, width, w));
+  VD_RETURN_IF_ERROR(ocl::kHBlur(*ctx_, n, out, tmp, w));
+  return ocl::kVBlur(*ctx_, n, tmp, out, w, h);
 }
 
 }  // namespace vd
