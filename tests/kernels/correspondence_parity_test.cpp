@@ -95,10 +95,11 @@ TEST(CorrespondenceTest, ColourRowIsTheLinearisedIntensityError) {
   const auto rows = sc.Rows();
   const int i = 20 * sc.cam.width + 30;
   const VdCorrespondence& c = rows[sc.n + i];
-  // Same canonical sample, the depth row's weight (the residual 0.02 is under the Huber threshold).
+  // Same canonical sample, twice the depth row's weight (a row on every second pixel; the residual
+  // 0.02 is under the Huber threshold).
   EXPECT_FLOAT_EQ(c.canonical.x, 1.f);
   EXPECT_FLOAT_EQ(c.canonical.z, 3.f);
-  EXPECT_FLOAT_EQ(c.canonical.w, 0.8f);
+  EXPECT_FLOAT_EQ(c.canonical.w, 1.6f);
   const vd_float4 p = sc.model.vertex[i];
   const vd_float4 s0 = vd_pose_apply(sc.prm.cam_to_world, p);
   // At the rendered point the row is s (I - c).
@@ -122,7 +123,7 @@ TEST(CorrespondenceTest, ColourRowIsTheLinearisedIntensityError) {
   EXPECT_NEAR(vd_dot3(c.normal, ray), 0.f, 1e-6f);
   // A bright spot far off the model's colour weighs linearly (Huber 0.1 at a residual of 0.5).
   sc.Ramp(0.5f, 0.01f, 0.005f);
-  EXPECT_NEAR(sc.Rows()[sc.n + i].canonical.w, 0.8f * 0.1f / 0.5f, 1e-5f);
+  EXPECT_NEAR(sc.Rows()[sc.n + i].canonical.w, 1.6f * 0.1f / 0.5f, 1e-5f);
   // The cap: a row never weighs more than max_strength of a depth row, with the same zero.
   sc.prm.max_strength = 0.01f;
   sc.Ramp(0.02f, 0.01f, 0.005f);
@@ -139,12 +140,15 @@ TEST(CorrespondenceTest, ColourRowsNeedTextureSmoothDepthAndADepthRow) {
   // No texture: no row anywhere.
   sc.Ramp(0.02f, 0.f, 0.f);
   for (const auto& c : sc.Rows()) EXPECT_FALSE(c.canonical.w > 0.f && c.normal.x != 0.f);
-  // Texture: every pixel at least edge_radius from the border has one.
+  // Texture: every second pixel (a checkerboard) at least edge_radius from the border has one.
   sc.Ramp(0.02f, 0.01f, 0.f);
   auto rows = sc.Rows();
   int count = 0;
-  for (int k = 0; k < sc.n; ++k) count += rows[sc.n + k].canonical.w > 0.f;
-  EXPECT_EQ(count, (64 - 8) * (48 - 8));
+  for (int k = 0; k < sc.n; ++k) {
+    count += rows[sc.n + k].canonical.w > 0.f;
+    if ((k % sc.cam.width + k / sc.cam.width) % 2) EXPECT_EQ(rows[sc.n + k].canonical.w, 0.f);
+  }
+  EXPECT_EQ(count, (64 - 8) * (48 - 8) / 2);
   // A depth edge 3 or 4 pixels to the right drops the row; 5 pixels away it does not.
   for (int gap : {3, 4, 5}) {
     sc.obs_v = sc.model.vertex;
@@ -256,9 +260,10 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
                                   rows.data());
   int colour_rows = 0;
   for (int k = 0; k < n; ++k) colour_rows += rows[n + k].canonical.w > 0.f;
-  // Most of the sphere's inner pixels (those 4 px inside its outline) have texture.
-  EXPECT_GT(colour_rows, 1000);
-  EXPECT_LT(colour_rows, valid);
+  // Most of the sphere's inner pixels (those 4 px inside its outline) have texture; one in two of
+  // them gets a row.
+  EXPECT_GT(colour_rows, 500) << colour_rows;
+  EXPECT_LT(colour_rows, valid / 2) << colour_rows;
   dm.colors = test::ToDevice(ctx, mc.colors);
   auto drgba = test::ToDevice(ctx, rgba);
   auto tmp = ctx->Alloc<float>(n / 4), dint = ctx->Alloc<float>(n / 4);
