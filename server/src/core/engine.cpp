@@ -861,9 +861,11 @@ Eigen::Matrix4d Engine::FieldRigidMotion(const std::vector<vd_float4>& deformed,
 }
 
 Status Engine::FactorRigidMotion(FrameResult* result) {
-  // A camera's pose error builds up over seconds, so a check every kFieldRigidInterval frames
+  // A camera's pose error builds up over seconds, so a check every kFieldRigidInterval frames (10
+  // with the dense colour term, which corrects the pose's slide along surfaces through the field)
   // keeps up with it; the move itself is a pass over the whole grid (~10 ms at 6 M points).
-  if (++frames_since_rigid_check_ < kFieldRigidInterval) return Status::Ok();
+  const int interval = PhotometricEnabled() ? kFieldRigidIntervalColour : kFieldRigidInterval;
+  if (++frames_since_rigid_check_ < interval) return Status::Ok();
   frames_since_rigid_check_ = 0;
   const size_t m = active_.count;
   if (m < 4) return Status::Ok();

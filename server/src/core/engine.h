@@ -330,10 +330,11 @@ class Engine {
   // Frames since FactorRigidMotion last measured the field's rigid part (it does every
   // kFieldRigidInterval frames).
   int frames_since_rigid_check_ = 0;
-  // 10, not 30: the dense colour term corrects the camera's drift along surfaces (which depth-only
-  // ICP leaves) through the field, as a rigid part this moves into the pose (rigid scene, 60
-  // frames: non-rigid displacement 0.95 mm checked every 30 frames, 0.70 every 10).
-  static constexpr int kFieldRigidInterval = 10;
+  static constexpr int kFieldRigidInterval = 30;
+  // With the dense colour term: it corrects the camera's drift along surfaces (which depth-only ICP
+  // leaves) through the field, as a rigid part this moves into the pose (rigid scene, 60 frames:
+  // non-rigid displacement 0.95 mm checked every 30 frames, 0.70 every 10).
+  static constexpr int kFieldRigidIntervalColour = 10;
   // Colour rows within this many pixels of an observed depth edge are dropped (VdPhotoParams): the
   // smoothed intensity (sqrt(3) px) there mixes the two surfaces.
   static constexpr int kPhotoEdgeRadius = 4;
