@@ -36,6 +36,20 @@ TEST(CorrespondenceTest, WeightFollowsThePapersKernels) {
 // Packs 8-bit R, G, B as the frames are uploaded (R in the low byte, alpha 255).
 uint32_t Rgba(int r, int g, int b) { return uint32_t(r) | uint32_t(g) << 8 | uint32_t(b) << 16 | 255u << 24; }
 
+// The colour rows' parameters at the engine's defaults when on (--w-photo 0.03).
+VdPhotoParams PhotoParams(const VdPose& cam_to_world, const VdCamera& cam, float max_strength) {
+  VdPhotoParams p{};
+  p.cam_to_world = cam_to_world;
+  p.cam = cam;
+  p.scale = 0.03f;
+  p.huber = 0.1f;
+  p.min_gradient = 0.002f;
+  p.max_strength = max_strength;
+  p.max_jump = 0.05f;
+  p.edge_radius = 4;
+  return p;
+}
+
 // A plane at z = 1 m facing a 64 x 48 camera, every pixel's model sample coloured grey 100 (all on
 // one triangle), every pixel's depth row valid with w_c = 0.8; the camera sits at a rotated and
 // shifted pose. The intensity image is given directly.
@@ -61,13 +75,7 @@ struct ColourRowScene {
     prm.cam_to_world.r0 = VD_F4(c, 0.f, s, 0.1f);
     prm.cam_to_world.r1 = VD_F4(0.f, 1.f, 0.f, 0.f);
     prm.cam_to_world.r2 = VD_F4(-s, 0.f, c, 0.f);
-    prm.cam = cam;
-    prm.scale = 0.03f;
-    prm.huber = 0.1f;
-    prm.min_gradient = 0.002f;
-    prm.max_strength = 100.f;
-    prm.max_jump = 0.05f;
-    prm.edge_radius = 4;
+    prm = PhotoParams(prm.cam_to_world, cam, 100.f);
   }
   // The intensity I(u, v) = 100 / 255 + offset + gu (u - 30) + gv (v - 20) at full-resolution
   // pixels; the image is kept at half resolution, whose pixel (x, y) is centred at (2x + 1/2, 2y + 1/2).
@@ -245,15 +253,7 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
   }
   std::vector<float> intensity(n / 4);
   cpu::Intensity(rgba.data(), intensity.data(), cam.width, cam.height);
-  VdPhotoParams pp{};
-  pp.cam_to_world = prm.cam_to_world;
-  pp.cam = cam;
-  pp.scale = 0.03f;
-  pp.huber = 0.1f;
-  pp.min_gradient = 0.002f;
-  pp.max_strength = 0.5f;
-  pp.max_jump = 0.05f;
-  pp.edge_radius = 4;
+  const VdPhotoParams pp = PhotoParams(prm.cam_to_world, cam, 0.5f);
   std::vector<VdCorrespondence> rows(2 * size_t(n));
   std::copy(ref.begin(), ref.end(), rows.begin());
   cpu::PhotometricCorrespondences(model, ov.data(), mc.colors.data(), mc.triangles.data(), intensity.data(), pp,
