@@ -82,8 +82,8 @@ struct ColourRowScene {
   void Ramp(float offset, float gu, float gv) {
     const int hw = cam.width / 2;
     for (int i = 0; i < hw * (cam.height / 2); ++i)
-      intensity[i] = 100.f / 255.f + offset + gu * (2.f * float(i % hw) + 0.5f - 30.f) +
-                     gv * (2.f * float(i / hw) + 0.5f - 20.f);
+      intensity[i] =
+          100.f / 255.f + offset + gu * (2.f * float(i % hw) + 0.5f - 30.f) + gv * (2.f * float(i / hw) + 0.5f - 20.f);
   }
   std::vector<VdCorrespondence> Rows() const {
     std::vector<VdCorrespondence> rows(2 * size_t(n));

@@ -135,8 +135,10 @@ VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_ro
   if (((x + y) & 1) != 0 || !(depth_row.canonical.w > 0.0f) || !vd_photo_depth_smooth(obs_v, x, y, prm)) return c;
   int hw = w / 2, hh = prm.cam.height / 2;
   float fx = (float)x, fy = (float)y;
-  float gx = 0.5f * (vd_intensity_at(intensity, hw, hh, fx + 1.0f, fy) - vd_intensity_at(intensity, hw, hh, fx - 1.0f, fy));
-  float gy = 0.5f * (vd_intensity_at(intensity, hw, hh, fx, fy + 1.0f) - vd_intensity_at(intensity, hw, hh, fx, fy - 1.0f));
+  float gx =
+      0.5f * (vd_intensity_at(intensity, hw, hh, fx + 1.0f, fy) - vd_intensity_at(intensity, hw, hh, fx - 1.0f, fy));
+  float gy =
+      0.5f * (vd_intensity_at(intensity, hw, hh, fx, fy + 1.0f) - vd_intensity_at(intensity, hw, hh, fx, fy - 1.0f));
   if (!(gx * gx + gy * gy >= prm.min_gradient * prm.min_gradient)) return c;
   vd_float4 p = model_v[i];
   if (!(p.z > 0.0f)) return c;

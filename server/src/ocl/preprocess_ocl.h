@@ -25,8 +25,8 @@ inline constexpr Kernel<void(const Buffer<float>& depth, Buffer<vd_float4>& vmap
 inline constexpr Kernel<void(const Buffer<vd_float4>& vmap, Buffer<vd_float4>& nmap, int width, int height,
                              float max_jump)> kNormalMap{"vd_normal_map"};
 // One item per half-resolution pixel: the intensity image's luma of each 2x2 block.
-inline constexpr Kernel<void(const Buffer<uint32_t>& rgba, Buffer<float>& out, int in_width, int out_width)>
-    kLumaHalf{"vd_luma_half"};
+inline constexpr Kernel<void(const Buffer<uint32_t>& rgba, Buffer<float>& out, int in_width, int out_width)> kLumaHalf{
+    "vd_luma_half"};
 // One item per pixel: the horizontal binomial pass.
 inline constexpr Kernel<void(const Buffer<float>& in, Buffer<float>& out, int width)> kHBlur{"vd_hblur"};
 // One item per pixel: the vertical pass.
