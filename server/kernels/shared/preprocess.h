@@ -125,19 +125,21 @@ VD_INLINE float vd_intensity_at(VD_GLOBAL const float* img, int w, int h, float 
   return vd_bilinear(img, w, h, 0.5f * x - 0.25f, 0.5f * y - 0.25f);
 }
 
+/* The binomial (1 4 6 4 1) / 16 of five taps, centre c, its neighbours m1 / p1 and m2 / p2. */
+VD_INLINE float vd_binomial5(float m2, float m1, float c, float p1, float p2) {
+  return (6.0f * c + 4.0f * (m1 + p1) + (m2 + p2)) * (1.0f / 16.0f);
+}
+
+/* The intensity image's smoothing passes along a row and along a column, taps clamped at the edge. */
 VD_INLINE float vd_hblur_pixel(VD_GLOBAL const float* in, int width, int x, int y) {
   VD_GLOBAL const float* row = in + y * width;
-  float s = 6.0f * row[x];
-  s += 4.0f * (row[vd_max_i(x - 1, 0)] + row[vd_min_i(x + 1, width - 1)]);
-  s += row[vd_max_i(x - 2, 0)] + row[vd_min_i(x + 2, width - 1)];
-  return s * (1.0f / 16.0f);
+  return vd_binomial5(row[vd_max_i(x - 2, 0)], row[vd_max_i(x - 1, 0)], row[x], row[vd_min_i(x + 1, width - 1)],
+                      row[vd_min_i(x + 2, width - 1)]);
 }
 
 VD_INLINE float vd_vblur_pixel(VD_GLOBAL const float* in, int width, int height, int x, int y) {
-  float s = 6.0f * in[y * width + x];
-  s += 4.0f * (in[vd_max_i(y - 1, 0) * width + x] + in[vd_min_i(y + 1, height - 1) * width + x]);
-  s += in[vd_max_i(y - 2, 0) * width + x] + in[vd_min_i(y + 2, height - 1) * width + x];
-  return s * (1.0f / 16.0f);
+  return vd_binomial5(in[vd_max_i(y - 2, 0) * width + x], in[vd_max_i(y - 1, 0) * width + x], in[y * width + x],
+                      in[vd_min_i(y + 1, height - 1) * width + x], in[vd_min_i(y + 2, height - 1) * width + x]);
 }
 
 #endif /* VD_PREPROCESS_H */

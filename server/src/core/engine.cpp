@@ -928,9 +928,9 @@ Status Engine::NonRigid(FrameResult* result) {
   sparse_host_.clear();
   if (!matches_.empty() && params_.solver.w_dense > 0.f)
     AppendSparseConstraints(matches_, params_.features.w_sparse / params_.solver.w_dense, &sparse_host_);
-  // The dense colour rows, when on, follow the depth rows pixel for pixel.
-  const bool photo =
-      PhotometricEnabled() && maps_.intensity.size() >= static_cast<size_t>(cam_.width / 2) * (cam_.height / 2);
+  // The dense colour rows, when on, follow the depth rows pixel for pixel (Preprocess made the
+  // intensity image; DeviceOps checks its size).
+  const bool photo = PhotometricEnabled();
   const size_t dense_rows = photo ? 2 * pixels : pixels;
   const size_t total = dense_rows + sparse_host_.size();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, total));
