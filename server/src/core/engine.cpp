@@ -106,6 +106,10 @@ void EngineParams::Bind(FlagParser* f) {
          "Preprocess the next frame on a second device queue while this one is solved: on, off, or auto (on for a "
          "GPU; on 2 CPU cores it bought nothing)",
          "auto|on|off");
+  f->Add("colour-registered", &colour_registered,
+         "Whether the colour lies on the depth's pixel grid, which the dense colour term (--w-photo) needs: auto "
+         "(measured from the first frames' depth and colour edges), yes, or no (the term stays off)",
+         "auto|yes|no");
   f->Add("bilateral-radius", &bilateral_radius, "Radius of the bilateral filter, pixels");
   f->Add("bilateral-sigma-space", &bilateral_sigma_space_px, "Spatial sigma of the bilateral filter, pixels");
   f->Add("bilateral-sigma-depth", &bilateral_sigma_depth_m, "Depth sigma of the bilateral filter, metres");
@@ -161,6 +165,8 @@ Status EngineParams::Validate() const {
   if (!(max_weight >= 1.f && max_weight <= 1e4f)) return ParamOutOfBounds("EngineParams", "max_weight", max_weight, "1 <= max_weight <= 1e4");
   if (!(min_depth >= 0.f && min_depth < max_depth)) return ParamOutOfBounds("EngineParams", "min_depth", min_depth, "0 <= min_depth < max_depth");
   if (!(max_depth <= 20.f)) return ParamOutOfBounds("EngineParams", "max_depth", max_depth, "max_depth <= 20 m");
+  if (colour_registered != "auto" && colour_registered != "yes" && colour_registered != "no")
+    return InvalidArgument("--colour-registered expects auto, yes or no, got '" + colour_registered + "'");
   if (prefetch_preprocess != "auto" && prefetch_preprocess != "on" && prefetch_preprocess != "off")
     return InvalidArgument("--prefetch-preprocess expects auto, on or off, got '" + prefetch_preprocess + "'");
   if (!(max_grid_mb >= 1.0 && max_grid_mb <= 64000.0)) return ParamOutOfBounds("EngineParams", "max_grid_mb", max_grid_mb, "1 <= max_grid_mb <= 64000");
@@ -241,6 +247,7 @@ Engine::Engine(const EngineParams& params, std::unique_ptr<ocl::Context> ctx)
     : params_(params),
       ctx_(std::move(ctx)),
       ops_(ctx_.get()),
+      colour_check_(ColourRegistrationParams(), params_.min_depth, params_.max_depth),
       solver_(std::make_unique<HierarchicalSolver>(&ops_, params_.solver)),
       matcher_(ctx_.get(), params_.features) {
   extractor_.Configure(params_.features, params_.min_depth, params_.max_depth);
@@ -250,8 +257,32 @@ bool Engine::SparseEnabled() const {
   return params_.features.enabled && !params_.rigid_only && params_.nonrigid_outer_iterations > 0;
 }
 
+bool Engine::PhotometricWanted() const {
+  return params_.solver.w_photo > 0.f && !params_.rigid_only && params_.nonrigid_outer_iterations > 0 &&
+         params_.colour_registered != "no" && colour_verdict_.load() != ColourRegistration::Verdict::kUnregistered;
+}
+
 bool Engine::PhotometricEnabled() const {
-  return params_.solver.w_photo > 0.f && !params_.rigid_only && params_.nonrigid_outer_iterations > 0;
+  return PhotometricWanted() &&
+         (params_.colour_registered == "yes" || colour_verdict_.load() == ColourRegistration::Verdict::kRegistered);
+}
+
+void Engine::CheckColourRegistration(const RgbdFrame& frame) {
+  if (params_.colour_registered != "auto" || colour_check_.verdict() != ColourRegistration::Verdict::kUndecided ||
+      !(params_.solver.w_photo > 0.f) || params_.rigid_only || params_.nonrigid_outer_iterations <= 0)
+    return;
+  const ColourRegistration::Verdict v = colour_check_.Add(frame);
+  if (v == ColourRegistration::Verdict::kUndecided) return;
+  colour_verdict_.store(v);
+  char line[320];
+  std::snprintf(line, sizeof line,
+                "colour %s to depth (edge alignment %.2f over %lld depth-edge crossings in %d frames; registered "
+                "from %.2f): the dense colour term is %s%s",
+                VerdictName(v), colour_check_.ratio(), static_cast<long long>(colour_check_.samples()),
+                colour_check_.frames(), colour_check_.params().min_peak_ratio,
+                v == ColourRegistration::Verdict::kRegistered ? "on" : "off",
+                v == ColourRegistration::Verdict::kRegistered ? "" : " (--colour-registered yes overrides)");
+  VD_LOG_INFO << line;
 }
 
 void Engine::Prefetch(const RgbdFrame& next) {
@@ -480,6 +511,8 @@ void Engine::Reset() {
   frames_fused_ = 0;
   frames_seen_ = 0;
   frames_since_rigid_check_ = 0;
+  colour_check_.Clear();
+  colour_verdict_.store(ColourRegistration::Verdict::kUndecided);
   history_.Clear();
   extractor_.Clear();
   matches_.clear();
@@ -690,7 +723,7 @@ Status Engine::Preprocess(ocl::Context& ctx, DeviceOps& ops, const RgbdFrame& fr
   } else {
     VD_RETURN_IF_ERROR(ctx.Copy(m.depth_raw_m, m.depth[0], n));
   }
-  if (PhotometricEnabled()) {
+  if (PhotometricWanted()) {
     const size_t half = static_cast<size_t>(k.width / 2) * (k.height / 2);
     VD_RETURN_IF_ERROR(ctx.Reserve(&m.intensity, half));
     VD_RETURN_IF_ERROR(ctx.Reserve(&m.intensity_tmp, half));
@@ -995,6 +1028,7 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   const bool sparse = SparseEnabled();
   if (sparse) extractor_.Prefetch(frame);
   auto t0 = Clock::now();
+  CheckColourRegistration(frame);
   VD_RETURN_IF_ERROR(TakeMaps(frame));
   cam_ = maps_.cam;
   result.times[Stage::kPreprocess] = MsSince(t0);

@@ -3,6 +3,7 @@
 // Every heavy step runs as an OpenCL kernel (server/kernels); this class orders them.
 #include <Eigen/Geometry>
 #include <array>
+#include <atomic>
 #include <cstdint>
 #include <future>
 #include <map>
@@ -14,6 +15,7 @@
 
 #include "core/brick_sightings.h"
 #include "core/checkpoint.h"
+#include "core/colour_registration.h"
 #include "core/features.h"
 #include "core/hierarchy.h"
 #include "core/rigid_tracker.h"
@@ -47,6 +49,12 @@ struct EngineParams {
   // "on", "off", or "auto" = on for a GPU. On 2 CPU cores through PoCL it bought nothing, as the
   // cores have little idle time to fill (0.91-1.06 of the frame time, docs/BENCHMARKS.md).
   std::string prefetch_preprocess = "auto";
+  // Whether the frames' colour lies on the depth's pixel grid, which the dense colour term
+  // (SolverParams::w_photo) needs: "auto" measures it from the first frames (core/
+  // colour_registration.h: depth edges against intensity edges), "yes" trusts the source, "no"
+  // keeps the term off. 7-Scenes' colour, from a second, uncalibrated sensor, measures 0.67-1.24
+  // against 1.45, the synthetic scenes 1.61-2.61 and a registered Kinect v1 (Snoopy) 1.68.
+  std::string colour_registered = "auto";
   int bilateral_radius = 2;
   float bilateral_sigma_space_px = 3.f;
   float bilateral_sigma_depth_m = 0.02f;
@@ -245,6 +253,10 @@ class Engine {
 
   const EngineParams& params() const { return params_; }
   std::string DeviceDescription() const { return ctx_->Describe(); }
+  // The colour's registration as measured so far (EngineParams::colour_registered), and whether the
+  // dense colour term runs on the frames now.
+  const ColourRegistration& colour_registration() const { return colour_check_; }
+  bool colour_term_active() const { return PhotometricEnabled(); }
   bool has_model() const { return initialised_; }
   const VdVolume& volume() const { return volume_.vol; }
   const FeatureHistory& feature_history() const { return history_; }
@@ -315,8 +327,14 @@ class Engine {
   // EngineParams::field_rigid_threshold (the deformed surface stays where the camera sees it).
   Status FactorRigidMotion(FrameResult* result);
   bool SparseEnabled() const;
-  // The dense colour term runs (SolverParams::w_photo > 0 on the non-rigid path).
+  // The dense colour term is asked for (SolverParams::w_photo > 0 on the non-rigid path) and not
+  // (yet) ruled out by the colour's registration: frames are preprocessed with the intensity.
+  bool PhotometricWanted() const;
+  // ... and it runs: the colour is registered (measured or trusted).
   bool PhotometricEnabled() const;
+  // While undecided (EngineParams::colour_registered "auto"), measures `frame`'s registration and
+  // logs the verdict once it falls.
+  void CheckColourRegistration(const RgbdFrame& frame);
 
   EngineParams params_;
   std::unique_ptr<ocl::Context> ctx_;
@@ -330,6 +348,10 @@ class Engine {
   // Frames since FactorRigidMotion last measured the field's rigid part (it does every
   // kFieldRigidInterval frames).
   int frames_since_rigid_check_ = 0;
+  // The colour's registration, measured on the first frames of a model (Reset starts again), and
+  // its verdict for Preprocess on the prefetch thread.
+  ColourRegistration colour_check_;
+  std::atomic<ColourRegistration::Verdict> colour_verdict_{ColourRegistration::Verdict::kUndecided};
   static constexpr int kFieldRigidInterval = 30;
   // With the dense colour term: it corrects the camera's drift along surfaces (which depth-only ICP
   // leaves) through the field, as a rigid part this moves into the pose (rigid scene, 60 frames:

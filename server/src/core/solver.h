@@ -25,10 +25,11 @@ struct SolverParams {
   // pins the motion along the surface that depth cannot see wherever the surface has texture.
   // At 0.03, measured over 60 frames (bend 150) (docs/BENCHMARKS.md "Session 28"): drift tube
   // 1.09 -> 0.99 mm, cloth 2.23 -> 1.52, bend 7.17 -> 5.53, rigid 0.69 -> 0.79 (its non-rigid
-  // displacement over 300 frames 0.89 mm, bound 1). Off by default: on 7-Scenes, whose colour comes
-  // from a second, uncalibrated sensor, the room's ATE grew 26.3 -> 31.6 mm (rigid 29.2): the term
-  // trusts colour that is misplaced on the geometry. Use it with registered colour.
-  float w_photo = 0.f;
+  // displacement over 300 frames 0.89 mm, bound 1). It runs only on colour registered to depth
+  // (EngineParams::colour_registered): on 7-Scenes, whose colour comes from a second, uncalibrated
+  // sensor, it took the room's ATE 26.3 -> 31.6 mm (rigid 29.2), trusting colour misplaced on the
+  // geometry; the registration check keeps it off there.
+  float w_photo = 0.03f;
   // A colour row weighs at most this much of a depth row: strong edges are where the linearisation
   // holds least. Without the cap (at 0.03, full-resolution image) the deforming scenes gained more
   // (tube 0.90, cloth 1.29, bend 4.09 mm) but the rigid scene's drift grew 0.69 -> 0.86 mm.
