@@ -80,6 +80,7 @@ EngineState SmallState(uint32_t seed) {
   s.keyframes = {0, 1};
   // Frame 5's feature 3 matched frame 0's feature 2.
   s.links = {FeatureLink{5, 0, 3, 2}};
+  s.colour_registration = 2;
   return s;
 }
 
@@ -115,6 +116,7 @@ void ExpectSame(const EngineState& a, const EngineState& b) {
   EXPECT_EQ(a.tracked.positions, b.tracked.positions);
   EXPECT_EQ(a.tracked.colors, b.tracked.colors);
   EXPECT_EQ(a.tracked.triangles, b.tracked.triangles);
+  EXPECT_EQ(a.colour_registration, b.colour_registration);
 }
 
 // SmallState with a tracked mesh: a square of 4 vertices and 2 faces.
@@ -141,7 +143,9 @@ TEST(CheckpointTest, RoundTripIsExactAndStoresOnlyTouchedBricks) {
 // the last `dropped_vectors` (empty) arrays, re-digested.
 std::string AsOlderVersion(const std::string& current, uint32_t version, size_t dropped_vectors) {
   const size_t header = 8 + 8 + 32;
-  std::string payload = current.substr(header, current.size() - header - dropped_vectors * sizeof(uint64_t));
+  // Before version 6 no colour registration byte ended the file.
+  const size_t dropped = dropped_vectors * sizeof(uint64_t) + (version < 6 ? 1 : 0);
+  std::string payload = current.substr(header, current.size() - header - dropped);
   std::memcpy(payload.data(), &version, sizeof(version));
   // Before version 4 no sparse flag followed the deformation flag.
   if (version < 4) payload.erase(4 + 4 + sizeof(VdVolume) + 1, 1);
@@ -175,13 +179,21 @@ TEST(CheckpointTest, TrackedMeshAndLinksRoundTripAndOlderFilesStillLoad) {
     EXPECT_FALSE(DecodeCheckpoint(EncodeCheckpoint(bad)).ok());
   }
 
+  bad = s;
+  bad.colour_registration = 3;
+  EXPECT_FALSE(bad.Validate().ok());
+  EXPECT_FALSE(DecodeCheckpoint(EncodeCheckpoint(bad)).ok());
+
   EngineState plain = SmallState(5);
   plain.links.clear();
   const std::string current = EncodeCheckpoint(plain);
-  // Version 4: the same layout for a dense grid; version 3: no sparse flag; version 2: no links
-  // array either; version 1: no tracked arrays.
-  for (auto [version, dropped] : {std::pair<uint32_t, size_t>{4, 0}, std::pair<uint32_t, size_t>{3, 0},
-                                  std::pair<uint32_t, size_t>{2, 1}, std::pair<uint32_t, size_t>{1, 4}}) {
+  // Before version 6 the colour's registration was not stored: it reads as undecided.
+  plain.colour_registration = 0;
+  // Version 5 and 4: the same layout for a dense grid; version 3: no sparse flag; version 2: no
+  // links array either; version 1: no tracked arrays.
+  for (auto [version, dropped] : {std::pair<uint32_t, size_t>{5, 0}, std::pair<uint32_t, size_t>{4, 0},
+                                  std::pair<uint32_t, size_t>{3, 0}, std::pair<uint32_t, size_t>{2, 1},
+                                  std::pair<uint32_t, size_t>{1, 4}}) {
     auto old = DecodeCheckpoint(AsOlderVersion(current, version, dropped));
     ASSERT_TRUE(old.ok()) << version << ": " << old.status().ToString();
     ExpectSame(plain, *old);
@@ -191,8 +203,8 @@ TEST(CheckpointTest, TrackedMeshAndLinksRoundTripAndOlderFilesStillLoad) {
     }
   }
   // A newer version is refused by name.
-  const std::string v6 = AsOlderVersion(current, 6, 0);
-  EXPECT_NE(DecodeCheckpoint(v6).status().message().find("version 6"), std::string::npos);
+  const std::string v7 = AsOlderVersion(current, 7, 0);
+  EXPECT_NE(DecodeCheckpoint(v7).status().message().find("version 7"), std::string::npos);
 }
 
 // The tube (40-frame take) and two engines at 6 mm: one runs on, the other resumes from its

@@ -23,8 +23,8 @@ constexpr char kMagic[8] = {'V', 'D', 'C', 'K', 'P', 'T', '0', '1'};
 // 2: the tracked mesh after the keyframes. 3: the feature links after the tracked mesh. 4: a sparse
 // flag after the deformation flag; a sparse volume stores its bricks by key where the dense grid
 // stores its brick list. 5: a sparse volume may hold the deformation field (t_i and R_i after each
-// voxel's colour). Version 1 to 4 files (no tracked mesh, no links, dense or rigid) are still read.
-constexpr uint32_t kFormatVersion = 5;
+// voxel's colour). 6: the colour's registration verdict after the links. Version 1 to 5 files (no tracked mesh, no links, dense or rigid) are still read.
+constexpr uint32_t kFormatVersion = 6;
 constexpr size_t kBrickVoxels = 512;
 // Bricks a sparse checkpoint may declare (2^28 is the most a brick table holds).
 constexpr size_t kMaxBricks = size_t(1) << 28;
@@ -181,6 +181,7 @@ Status EngineState::Validate() const {
       !(cam.fy > 0.f))
     return InvalidArgument("checkpoint camera is invalid");
   if (frames_fused < 0 || frames_seen < frames_fused) return InvalidArgument("checkpoint frame counts are invalid");
+  if (colour_registration > 2) return InvalidArgument("checkpoint colour registration verdict is out of range");
   for (const FrameFeatures& f : history) {
     const size_t k = f.u.size();
     if (f.v.size() != k || f.size.size() != k || f.angle.size() != k || f.camera_points.size() != k ||
@@ -275,6 +276,7 @@ std::string EncodeCheckpoint(const EngineState& s) {
   w.PutVector(s.tracked.colors);
   w.PutVector(s.tracked.triangles);
   w.PutVector(s.links);
+  w.Put(s.colour_registration);
   const std::string& payload = w.bytes();
   std::string out(kMagic, sizeof(kMagic));
   const uint64_t size = payload.size();
@@ -400,6 +402,7 @@ StatusOr<EngineState> DecodeCheckpoint(const std::string& bytes) {
     VD_RETURN_IF_ERROR(r.GetVector(&s.tracked.triangles, 6 * kMaxTrackedVertices, "tracked faces"));
   }
   if (version >= 3) VD_RETURN_IF_ERROR(r.GetVector(&s.links, kMaxLinks, "feature links"));
+  if (version >= 6) VD_RETURN_IF_ERROR(r.Get(&s.colour_registration, "colour registration"));
   if (r.remaining() != 0) return DataLoss("checkpoint has " + std::to_string(r.remaining()) + " trailing bytes");
   if (!AllFinite(s.tsdf) || !AllFinite(s.weight) || !AllFinite(s.def_pos) || !AllFinite(s.def_rot))
     return DataLoss("checkpoint volume holds non-finite values");

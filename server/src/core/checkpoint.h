@@ -44,6 +44,10 @@ struct EngineState {
   // first frame's canonical mesh or the given one): positions, colours (empty or 3 per vertex) and
   // faces, so a resumed run goes on deforming the same vertices. Empty when not tracking.
   TriangleMesh tracked;
+  // The colour's registration as measured (core/colour_registration.h: 0 undecided, 1 registered,
+  // 2 not registered), so a resumed model runs the dense colour term as before without measuring
+  // again on the frames after the resume. Version 6 on; older checkpoints read 0 (measured again).
+  uint8_t colour_registration = 0;
   // Sequence number and source of the last frame fused (for the log and the status).
   int64_t last_seq = -1;
   std::string source_id;

@@ -42,7 +42,8 @@ struct ColourRegistrationParams {
 
 class ColourRegistration {
  public:
-  enum class Verdict { kUndecided, kRegistered, kUnregistered };
+  // The values are stored in checkpoints (EngineState::colour_registration).
+  enum class Verdict : uint8_t { kUndecided = 0, kRegistered = 1, kUnregistered = 2 };
   // Offsets either side of an edge that the profile covers, and the peak's reach within it.
   static constexpr int kReach = 16;
   static constexpr int kPeakReach = 4;
@@ -67,6 +68,11 @@ class ColourRegistration {
   using Profile = std::array<double, 2 * kReach + 1>;
   const Profile& profile(int axis) const { return profile_[axis]; }
   void Clear();
+  // Starts over with `v` already decided (a model restored from a checkpoint).
+  void Restore(Verdict v) {
+    Clear();
+    verdict_ = v;
+  }
 
  private:
   static double Ratio(const Profile& p);

@@ -425,6 +425,7 @@ Status Engine::SaveState(EngineState* state) {
   s.keyframes = history_.keyframes();
   s.links = history_.links();
   s.tracked = track_mesh_ ? tracked_canonical_ : TriangleMesh();
+  s.colour_registration = static_cast<uint8_t>(colour_verdict_.load());
   return Status::Ok();
 }
 
@@ -486,6 +487,8 @@ Status Engine::RestoreState(const EngineState& s, FrameResult* meshes) {
   frames_fused_ = s.frames_fused;
   frames_seen_ = s.frames_seen;
   history_.Restore(s.history, s.keyframes, s.links);
+  colour_check_.Restore(static_cast<ColourRegistration::Verdict>(s.colour_registration));
+  colour_verdict_.store(colour_check_.verdict());
   initialised_ = true;
   // The tracked mesh goes on with the vertices it had (a run that tracks a given mesh keeps that).
   if (track_mesh_ && !s.tracked.triangles.empty() && track_given_.positions.empty()) {
