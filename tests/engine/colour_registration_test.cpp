@@ -154,7 +154,7 @@ TEST(ColourRegistrationTest, EngineRunsTheColourTermOnRegisteredColourOnly) {
   for (const Case& c : {Case{"auto", 0, true}, Case{"auto", 10, false}, Case{"yes", 10, true}, Case{"no", 0, false}}) {
     EngineParams p;
     p.colour_registered = c.registered;
-    ASSERT_GT(p.solver.w_photo, 0.f) << "the colour term is on by default";
+    p.solver.w_photo = 0.03f;
     auto engine = Engine::Create(p, "");
     ASSERT_TRUE(engine.ok()) << engine.status().ToString();
     for (int k = 0; k < 3; ++k) {
@@ -171,9 +171,17 @@ TEST(ColourRegistrationTest, EngineRunsTheColourTermOnRegisteredColourOnly) {
       EXPECT_EQ((*engine)->colour_registration().verdict(), Verdict::kUndecided);
     }
   }
-  // Rigid-only runs never ask for the term.
+  // Rigid-only runs never ask for the term, nor do runs without --w-photo (the default).
+  EngineParams plain;
+  ASSERT_EQ(plain.solver.w_photo, 0.f);
+  auto off = Engine::Create(plain, "");
+  ASSERT_TRUE(off.ok());
+  ASSERT_TRUE((*off)->Process((*scene)->Render(0)).ok());
+  EXPECT_FALSE((*off)->colour_term_active());
+  EXPECT_EQ((*off)->colour_registration().frames(), 0);
   EngineParams rigid;
   rigid.rigid_only = true;
+  rigid.solver.w_photo = 0.03f;
   auto engine = Engine::Create(rigid, "");
   ASSERT_TRUE(engine.ok());
   ASSERT_TRUE((*engine)->Process((*scene)->Render(0)).ok());

@@ -18,7 +18,7 @@ using test::PrintErrors;
 using test::SceneErrors;
 using test::SceneRun;
 
-// sift: E_sparse on; colour: the dense colour term on (--w-photo 0.03, the default) or off.
+// sift: E_sparse on; colour: the dense colour term on (--w-photo 0.03; off by default).
 SceneErrors RunSparse(const std::string& name, bool sift, int stride, bool colour = false) {
   SceneRun run;
   run.name = name;
