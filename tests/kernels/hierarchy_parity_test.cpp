@@ -7,9 +7,6 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
-#include <map>
-#include <random>
-#include <tuple>
 
 #include "core/hierarchy.h"
 #include "cpu_ref/cpu_ref.h"
@@ -182,50 +179,6 @@ TEST(HierarchyParityTest, LevelsRestrictionConstraintsAndProlongationMatchCpu) {
                          out_ref.data());
     EXPECT_TRUE(AllClose(Flatten(FromDevice(ctx, d_out, fine.count)), Flatten(out_ref), 1e-6f, 1e-6f));
   }
-}
-
-// A coarse point on an active fine point takes that point's state as it is (injection); one off the
-// active fine surface takes the tent-weighted mean of the active fine points around it.
-TEST(HierarchyParityTest, RestrictionInjectsTheCoincidentFinePoint) {
-  const Fixture f = MakeSphere();
-  const int s = 2;
-  const VdLattice fl = vd_lattice_dense(f.vol), cv = vd_lattice_level(fl, s);
-  const cpu::ActiveSet lvl = cpu::BuildLevel(fl, nullptr, f.fine.list, s, cv, size_t(vd_lattice_brick_points(cv)));
-  std::mt19937 rng(7);
-  std::uniform_real_distribution<float> u(-0.002f, 0.002f);
-  std::vector<vd_float4> x_f(f.fine.list.size()), rot_f(f.fine.list.size());
-  std::map<std::tuple<long, long, long>, size_t> fine_at;
-  auto key = [](vd_float4 p) { return std::make_tuple(std::lround(p.x * 1e5), std::lround(p.y * 1e5), std::lround(p.z * 1e5)); };
-  for (size_t k = 0; k < x_f.size(); ++k) {
-    const vd_float4 rest = Rest(f.vol, f.fine.list[k]);
-    fine_at[key(rest)] = k;
-    x_f[k] = rest + VD_F4(u(rng), u(rng), u(rng), 0.f);
-    const float a = u(rng) * 100.f;  // up to 0.2 rad about x
-    rot_f[k] = VD_F4(std::sin(a), 0.f, 0.f, std::cos(a));
-  }
-  std::vector<vd_float4> x0(lvl.list.size()), rot_c(lvl.list.size());
-  cpu::LevelRestrict(Dense(cv, lvl), int(lvl.list.size()), s, Dense(fl, f.fine), x_f.data(), rot_f.data(), x0.data(),
-                     rot_c.data());
-  int injected = 0, averaged = 0;
-  for (size_t k = 0; k < x0.size(); ++k) {
-    const vd_float4 rest = vd_active_rest(Dense(cv, lvl), int(k));
-    const auto it = fine_at.find(key(rest));
-    if (it != fine_at.end()) {
-      ++injected;
-      ASSERT_EQ(x0[k].x, x_f[it->second].x) << k;
-      ASSERT_EQ(x0[k].y, x_f[it->second].y) << k;
-      ASSERT_EQ(x0[k].z, x_f[it->second].z) << k;
-      ASSERT_EQ(rot_c[k].x, rot_f[it->second].x) << k;
-      ASSERT_EQ(rot_c[k].w, rot_f[it->second].w) << k;
-    } else {
-      ++averaged;
-      // A mean of displacements of at most 2 mm per axis, and of unit rotations about x.
-      ASSERT_LE(std::fabs(x0[k].x - rest.x), 0.002f + 1e-6f) << k;
-      ASSERT_NEAR(rot_c[k].x * rot_c[k].x + rot_c[k].w * rot_c[k].w, 1.f, 1e-5f) << k;
-    }
-  }
-  EXPECT_GT(injected, 100);
-  EXPECT_GT(averaged, 100);
 }
 
 // A field translated by d everywhere: the coarse starts are rest + d, the constraints' targets do

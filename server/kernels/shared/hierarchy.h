@@ -32,30 +32,16 @@ VD_INLINE int vd_level_corner(VdLattice coarse, VD_GLOBAL const int* nbr, int s,
   return vd_lattice_entry(coarse, nbr, slot, cx + (o & 1), cy + ((o >> 1) & 1), cz + ((o >> 2) & 1));
 }
 
-/* x0 of coarse active point K (returned) and in *rot_c the warm start of its rotation. A coarse
- * point sits on a fine lattice point (s X, s Y, s Z): when that one is active, its state is taken
- * as it is (injection, as multigrid restricts a state; the coarse solve finds a correction to it,
- * which vd_level_prolongate adds back). Measured against the average below (docs/BENCHMARKS.md
- * "Session 29"): drift tube 1.09 -> 1.06 mm, cloth 2.23 -> 2.17, bend 150 7.17 -> 6.94, rigid
- * 0.69 -> 0.69 (non-rigid displacement 0.62 -> 0.63), and the rigid scene's solve 0.90x. Else
- * (a coarse point off the active fine surface): its rest position plus the tent-weighted mean
- * displacement of the active fine points within s of it, and the normalised tent-weighted mean of
- * their rotations (identity when there are none). The coarse rotation step refines that
- * (vd_procrustes_refine_lanes) instead of solving from nothing by SVD: a coarse neighbourhood is a
- * smoothed fine one, so its optimum is near the fine rotation there, as a fine point's is near its
- * last frame's. */
+/* x0 of coarse active point K (returned): its rest position plus the tent-weighted mean
+ * displacement of the active fine points within s of it; and in *rot_c the warm start of its
+ * rotation, the normalised tent-weighted mean of their rotations (identity when there are none).
+ * The coarse rotation step then refines that (vd_procrustes_refine_lanes) instead of solving from
+ * nothing by SVD: a coarse neighbourhood is a smoothed fine one, so its optimum is near the mean
+ * fine rotation there, as a fine point's is near its last frame's. */
 VD_INLINE vd_float4 vd_level_restrict(int K, VdActive coarse, int s, VdActive fine, VD_GLOBAL const vd_float4* x_f,
                                       VD_GLOBAL const vd_float4* rot_f, vd_float4* rot_c) {
   int slot, X, Y, Z, GX, GY, GZ;
   vd_active_point(coarse, K, &slot, &X, &Y, &Z, &GX, &GY, &GZ);
-  int e = vd_lattice_entry(fine.lat, fine.nbr, slot, s * X, s * Y, s * Z);
-  int k0 = e >= 0 ? fine.compact[e] : -1;
-  if (k0 >= 0) {
-    vd_float4 p0 = x_f[k0];
-    p0.w = 0.0f;
-    *rot_c = rot_f[k0];
-    return p0;
-  }
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   vd_float4 qsum = VD_F4(0.0f, 0.0f, 0.0f, 0.0f), qref = VD_F4(0.0f, 0.0f, 0.0f, 1.0f);
   int found = 0;
