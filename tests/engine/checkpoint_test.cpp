@@ -191,9 +191,9 @@ TEST(CheckpointTest, TrackedMeshAndLinksRoundTripAndOlderFilesStillLoad) {
   plain.colour_registration = 0;
   // Version 5 and 4: the same layout for a dense grid; version 3: no sparse flag; version 2: no
   // links array either; version 1: no tracked arrays.
-  for (auto [version, dropped] : {std::pair<uint32_t, size_t>{5, 0}, std::pair<uint32_t, size_t>{4, 0},
-                                  std::pair<uint32_t, size_t>{3, 0}, std::pair<uint32_t, size_t>{2, 1},
-                                  std::pair<uint32_t, size_t>{1, 4}}) {
+  for (auto [version, dropped] :
+       {std::pair<uint32_t, size_t>{5, 0}, std::pair<uint32_t, size_t>{4, 0}, std::pair<uint32_t, size_t>{3, 0},
+        std::pair<uint32_t, size_t>{2, 1}, std::pair<uint32_t, size_t>{1, 4}}) {
     auto old = DecodeCheckpoint(AsOlderVersion(current, version, dropped));
     ASSERT_TRUE(old.ok()) << version << ": " << old.status().ToString();
     ExpectSame(plain, *old);

@@ -3,14 +3,14 @@
 // pixel grid) and their colour moved by a few pixels; 7-Scenes (a second, uncalibrated colour
 // sensor) and KillingFusion's Snoopy (registered) from ../shared/data when present; and the engine
 // turning the term on or off by the verdict and by --colour-registered.
+#include "core/colour_registration.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
-
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "core/colour_registration.h"
 #include "scene_eval.h"
 
 namespace vd {

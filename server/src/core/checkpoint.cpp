@@ -23,7 +23,8 @@ constexpr char kMagic[8] = {'V', 'D', 'C', 'K', 'P', 'T', '0', '1'};
 // 2: the tracked mesh after the keyframes. 3: the feature links after the tracked mesh. 4: a sparse
 // flag after the deformation flag; a sparse volume stores its bricks by key where the dense grid
 // stores its brick list. 5: a sparse volume may hold the deformation field (t_i and R_i after each
-// voxel's colour). 6: the colour's registration verdict after the links. Version 1 to 5 files (no tracked mesh, no links, dense or rigid) are still read.
+// voxel's colour). 6: the colour's registration verdict after the links. Version 1 to 5 files
+// (no tracked mesh, no links, dense or rigid) are still read.
 constexpr uint32_t kFormatVersion = 6;
 constexpr size_t kBrickVoxels = 512;
 // Bricks a sparse checkpoint may declare (2^28 is the most a brick table holds).
