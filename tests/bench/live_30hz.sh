@@ -3,7 +3,8 @@
 # capture sent, the server's processed fraction and rate, its capture-to-mesh latency p50/p95, and
 # the CPU each server thread used while the capture ran, in % of one core (vd-worker: the frame
 # loop; vd-sift: feature detection; vd-receive: LCM and decoding; vd-output: mesh encoding;
-# vdeform-server: the OpenCL runtime's workers).
+# vdeform-server: the OpenCL runtime's workers), and the capture's own CPU (capture), which on one
+# machine shares the same cores.
 #   tests/bench/live_30hz.sh BUILD_DIR [SCENE] [FRAMES]
 set -euo pipefail
 build=$(cd "$1" && pwd)
@@ -28,8 +29,12 @@ threads() {
 }
 threads >"$work/cpu0"
 t0=$(date +%s.%N)
-"$build/capture_client/vdeform-capture" --source "folder:$work/scene" --fps 30 --lcm-url "$url" --quiet
+# The capture shares the two cores: its own CPU (user + system over its run) is printed too.
+TIMEFORMAT='%U %S %R'
+{ time "$build/capture_client/vdeform-capture" --source "folder:$work/scene" --fps 30 --lcm-url "$url" --quiet \
+  2>"$work/capture.err"; } 2>"$work/capture.time"
 t1=$(date +%s.%N)
+cat "$work/capture.err" >&2
 threads >"$work/cpu1"
 awk -v t0="$t0" -v t1="$t1" -v hz="$(getconf CLK_TCK)" '
   NR == FNR { a[$1] += $2; next } { b[$1] += $2 }
@@ -39,6 +44,7 @@ awk -v t0="$t0" -v t1="$t1" -v hz="$(getconf CLK_TCK)" '
     b["vd-sift"] += (b["process"] - a["process"]) - live
     for (k in b) if (k != "process") printf "cpu_%s=%.0f%%\n", k, 100 * (b[k] - a[k]) / hz / (t1 - t0)
   }' "$work/cpu0" "$work/cpu1" | sort
+awk '{ printf "cpu_capture=%.0f%%\n", 100 * ($1 + $2) / $3 }' "$work/capture.time"
 sleep 3
 "$build/server/vdeform-control" --command status --lcm-url "$url" --wait 3 | grep -E "^(frames_received|frames_processed|frames_dropped|fps|latency_ms_p50|latency_ms_p95)="
 kill -INT "$srv"
