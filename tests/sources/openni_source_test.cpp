@@ -1,6 +1,9 @@
 // OpenNI2 sources without a sensor: the Dummy device for the live path, a Dummy recording for
 // .oni playback (which must time out, not hang: STACK.md), and the errors for absent devices/files.
 #include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cmath>
@@ -125,9 +128,37 @@ bool RecordDummy(const std::string& path) {
   return ok;
 }
 
+enum class Recorded { kOk, kUnavailable, kHung };
+
+// RecordDummy in a child process, given up after 20 s. The recording is the test's fixture, made
+// by OpenNI2's own recorder on its Dummy device, which once hung a parallel suite run until
+// ctest's time-out (2026-12-07; 40 runs beside two busy cores did not repeat it). A hang there is
+// OpenNI2's, not the source's under test, so it skips the test instead of stalling the suite.
+Recorded RecordDummyIsolated(const std::string& path) {
+  const pid_t pid = ::fork();
+  if (pid < 0) return RecordDummy(path) ? Recorded::kOk : Recorded::kUnavailable;
+  if (pid == 0) ::_exit(RecordDummy(path) ? 0 : 1);
+  const auto deadline = Clock::now() + std::chrono::seconds(20);
+  int status = 0;
+  while (::waitpid(pid, &status, WNOHANG) == 0) {
+    if (Clock::now() > deadline) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      return Recorded::kHung;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0 ? Recorded::kOk : Recorded::kUnavailable;
+}
+
 TEST(OniSource, DummyRecordingOpensAndEveryReadTimesOut) {
   const fs::path path = fs::temp_directory_path() / ("vd_dummy_" + std::to_string(::getpid()) + ".oni");
-  if (!RecordDummy(path.string())) GTEST_SKIP() << "cannot record from the OpenNI2 Dummy device";
+  const Recorded recorded = RecordDummyIsolated(path.string());
+  if (recorded == Recorded::kHung) {
+    fs::remove(path);
+    GTEST_SKIP() << "OpenNI2's recorder hung on the Dummy device for 20 s (the fixture, not the source)";
+  }
+  if (recorded == Recorded::kUnavailable) GTEST_SKIP() << "cannot record from the OpenNI2 Dummy device";
   SourceOptions o;
   o.read_timeout_s = 0.3;
   auto source = OpenSource("oni:" + path.string(), o);
