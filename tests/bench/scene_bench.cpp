@@ -3,6 +3,7 @@
 // server's engine flags (vdeform-server --help), so any setting can be measured the way it runs.
 //   vd_scene_bench --scene tube [--voxel-size 0.004] [--frames 60] [--stride 1] [--rigid-only] ...
 #include <cstdio>
+#include <map>
 
 #include "../engine/scene_eval.h"
 #include "server_options.h"
@@ -69,5 +70,11 @@ int main(int argc, char** argv) {
   std::printf(
       "active grid points (mean) %.0f, of them solved %.0f, OpenCL buffers peak %.1f MB, resident peak %.1f MB\n",
       e->mean_active_voxels, e->mean_solved_voxels, e->device_peak_bytes / 1e6, vd::PeakResidentBytes() / 1e6);
+  // How often the field was found static and solved on fewer levels (EngineParams::static_levels).
+  std::map<int, int> levels;
+  for (int l : e->solver_levels) ++levels[l];
+  std::printf("solver levels:");
+  for (const auto& [l, frames] : levels) std::printf(" %d on %d frames;", l, frames);
+  std::printf("\n");
   return 0;
 }

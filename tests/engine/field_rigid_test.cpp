@@ -92,5 +92,37 @@ TEST(FieldRigidTest, TheRigidSceneFieldStaysFreeOfPoseError) {
   EXPECT_LE(e->last_drift_mm, 1.0);
 }
 
+// EngineParams::static_levels: the same measurement, every 10 frames, tells a static field (the
+// rigid scene: the solve drops to the fine level from the first measurement on) from a deforming
+// one (the tube: every level on every frame); 0 keeps every level.
+TEST(FieldRigidTest, AStaticFieldIsSolvedOnTheFineLevelAlone) {
+  if (!test::HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  const auto levels_of = [](const char* name, int static_levels, int frames) -> std::vector<int> {
+    test::SceneRun run;
+    run.name = name;
+    run.num_frames = frames;
+    run.params.static_levels = static_levels;
+    auto e = test::EvaluateScene(run);
+    EXPECT_TRUE(e.ok()) << e.status().ToString();
+    return e.ok() ? e->solver_levels : std::vector<int>();
+  };
+  // Frame 0 is fused, not solved; the first measurement follows the 10th solve.
+  const std::vector<int> rigid = levels_of("rigid", 1, 24);
+  ASSERT_EQ(rigid.size(), 24u);
+  EXPECT_EQ(rigid[0], 0);
+  for (int k = 1; k <= 10; ++k) EXPECT_EQ(rigid[k], 3) << "frame " << k;
+  for (int k = 11; k < 24; ++k) EXPECT_EQ(rigid[k], 1) << "frame " << k;
+  const std::vector<int> two = levels_of("rigid", 2, 12);
+  ASSERT_EQ(two.size(), 12u);
+  EXPECT_EQ(two[10], 3);
+  EXPECT_EQ(two[11], 2);
+  const std::vector<int> tube = levels_of("tube", 1, 24);
+  ASSERT_EQ(tube.size(), 24u);
+  for (int k = 1; k < 24; ++k) EXPECT_EQ(tube[k], 3) << "frame " << k;
+  const std::vector<int> off = levels_of("rigid", 0, 12);
+  ASSERT_EQ(off.size(), 12u);
+  for (int k = 1; k < 12; ++k) EXPECT_EQ(off[k], 3) << "frame " << k;
+}
+
 }  // namespace
 }  // namespace vd

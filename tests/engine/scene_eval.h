@@ -55,6 +55,8 @@ struct SceneErrors {
   int frames = 0;
   double mean_active_voxels = 0;
   double mean_solved_voxels = 0;
+  // Levels of the solver's hierarchy per processed frame (fewer while the field is static).
+  std::vector<int> solver_levels;
   size_t device_peak_bytes = 0;
   // Sparse features per frame (means): detected, lifted, matches used; detection + description ms.
   double mean_features = 0, mean_lifted = 0, mean_matches = 0, mean_extract_ms = 0, mean_match_ms = 0,
@@ -179,6 +181,7 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
     }
     sum_active += double(r.active_voxels);
     sum_solved += double(r.solved_voxels);
+    out.solver_levels.push_back(r.solver_levels);
     if (run.track_mesh && out.frames == 1) first_canonical = r.canonical_mesh;
     if (run.track_mesh && k == last) {
       // Each tracked vertex's material point (its closest point on frame 0's true surface), where

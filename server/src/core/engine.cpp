@@ -92,6 +92,9 @@ void EngineParams::Bind(FlagParser* f) {
   f->Add("field-rigid-threshold", &field_rigid_threshold,
          "Move the field's rigid part into the camera pose once it displaces the active points by this RMS, metres "
          "(0: never)");
+  f->Add("static-levels", &static_levels,
+         "Levels of the solver's hierarchy while the field is static (its non-rigid part under half a voxel, "
+         "measured every 10 frames; 0: always --levels)");
   f->Add("k-min-new", &k_min_new,
          "... and grid points never fused before (space seen for the first time) only after this many (at least "
          "--k-min)");
@@ -195,6 +198,8 @@ Status EngineParams::Validate() const {
   if (!(k_min >= 0.f && k_min <= 100.f)) return ParamOutOfBounds("EngineParams", "k_min", k_min, "0 <= k_min <= 100");
   if (!(field_rigid_threshold >= 0.f && field_rigid_threshold <= 1.f))
     return ParamOutOfBounds("EngineParams", "field_rigid_threshold", field_rigid_threshold, "0 <= threshold <= 1 m");
+  if (!(static_levels >= 0 && static_levels <= 8))
+    return ParamOutOfBounds("EngineParams", "static_levels", static_levels, "0 <= static_levels <= 8");
   if (!(k_min_new >= 0.f && k_min_new <= 100.f))
     return ParamOutOfBounds("EngineParams", "k_min_new", k_min_new, "0 <= k_min_new <= 100");
   if (!(carve_rate >= 0.f && carve_rate < 1.f))
@@ -514,6 +519,8 @@ void Engine::Reset() {
   frames_fused_ = 0;
   frames_seen_ = 0;
   frames_since_rigid_check_ = 0;
+  frames_since_state_check_ = 0;
+  field_static_ = false;
   colour_check_.Clear();
   colour_verdict_.store(ColourRegistration::Verdict::kUndecided);
   history_.Clear();
@@ -901,8 +908,11 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
   // with the dense colour term, which corrects the pose's slide along surfaces through the field)
   // keeps up with it; the move itself is a pass over the whole grid (~10 ms at 6 M points).
   const int interval = PhotometricEnabled() ? kFieldRigidIntervalColour : kFieldRigidInterval;
-  if (++frames_since_rigid_check_ < interval) return Status::Ok();
-  frames_since_rigid_check_ = 0;
+  const bool move_due = params_.field_rigid_threshold > 0.f && ++frames_since_rigid_check_ >= interval;
+  const bool state_due = params_.static_levels > 0 && ++frames_since_state_check_ >= kFieldStateInterval;
+  if (!move_due && !state_due) return Status::Ok();
+  if (move_due) frames_since_rigid_check_ = 0;
+  if (state_due) frames_since_state_check_ = 0;
   const size_t m = active_.count;
   if (m < 4) return Status::Ok();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&factor_pos_, m));
@@ -932,7 +942,15 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
   // A field whose non-rigid rest is under half a voxel is a static scene's (its noise: 0.6-0.8 mm on
   // the rigid scene at 4 mm); a deforming one (10-30 mm on the tube and the cloth) keeps its rigid
   // part, so the pose stays the camera's there.
-  if (!(rms > params_.field_rigid_threshold && residual < 0.5 * volume_.vol.voxel_size)) return Status::Ok();
+  const bool still = residual < 0.5 * volume_.vol.voxel_size;
+  if (state_due && still != field_static_) {
+    field_static_ = still;
+    VD_LOG_INFO << "the field is " << (still ? "static" : "deforming") << " (non-rigid rest " << residual * 1000
+                << " mm): solving on "
+                << (still ? std::min(params_.static_levels, params_.solver.levels) : params_.solver.levels)
+                << " level(s)";
+  }
+  if (!(move_due && rms > params_.field_rigid_threshold && still)) return Status::Ok();
   // t' = A^-1 t, R' = R_A^-1 R, and the pose A^-1 pose: the camera sees every point where it did.
   const Eigen::Matrix4d a_inv = a.inverse();
   const Eigen::Quaterniond q(Eigen::Matrix3d(a_inv.topLeftCorner<3, 3>()));
@@ -950,10 +968,12 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
 Status Engine::NonRigid(FrameResult* result) {
   // M from the surface extracted after the last frame; new members start from the field.
   if (bricks_) {
+    solver_->set_levels(field_static_ && params_.static_levels > 0 ? params_.static_levels : 0);
     VD_RETURN_IF_ERROR(PrepareBricks(result));
     VD_RETURN_IF_ERROR(
         solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, solved_));
   } else {
+    solver_->set_levels(field_static_ && params_.static_levels > 0 ? params_.static_levels : 0);
     const std::optional<SolveView> view = ViewToSolve();
     VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_, &solved_, view ? &*view : nullptr));
     VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
@@ -1015,6 +1035,7 @@ Status Engine::NonRigid(FrameResult* result) {
       result->energies_evaluated = true;
     }
     result->dense_correspondences = summary.constraints;
+    result->solver_levels = solver_->num_levels();
   }
   return ctx_->Finish();
 }
@@ -1129,7 +1150,8 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
       result.times[Stage::kFeatures] += result.bundle_ms;
     }
   }
-  if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0 && params_.field_rigid_threshold > 0.f) {
+  if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0 &&
+      (params_.field_rigid_threshold > 0.f || params_.static_levels > 0)) {
     t0 = Clock::now();
     VD_RETURN_IF_ERROR(FactorRigidMotion(&result));
     result.times[Stage::kNonRigid] += MsSince(t0);

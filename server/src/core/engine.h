@@ -113,6 +113,14 @@ struct EngineParams {
   // deforming field (a bending object before a still camera) is left alone, so the pose stays the
   // camera's. 0: never.
   float field_rigid_threshold = 2e-4f;
+  // Levels of the solver's hierarchy while the field is static: every kFieldStateInterval frames
+  // the same measurement finds the field's non-rigid rest (after its best rigid motion); under
+  // half a voxel the scene is static (0.6-0.8 mm on the rigid scene at 4 mm, 10-30 mm on the
+  // deforming ones) and the next frames solve on this many levels. The coarse levels carry large
+  // non-rigid updates across the surface; a static field has none to carry, and there they only
+  // add low-frequency noise (rigid scene: non-rigid displacement 0.62 mm with 3 levels, 0.49 with
+  // the fine level alone, and a quarter of the frame time). 0: always SolverParams::levels.
+  int static_levels = 1;
   // ... and points never fused before (new space: weight 0) only after this many. Measured on the
   // long bend (docs/BENCHMARKS.md "Long takes"): new geometry fused after 3 optimisations, as the
   // paper's K_min, is the duplicated surface section 8 warns of, grown at the parts that turn.
@@ -198,6 +206,8 @@ struct FrameResult {
   int64_t bricks_grown = 0;
   // Non-rigid solve of this frame: constraint rows (dense pixels + 3 per sparse match), E_total before and after (0 when rigid).
   int dense_correspondences = 0;
+  // Levels of the hierarchy it used (fewer while the field is static, EngineParams::static_levels).
+  int solver_levels = 0;
   double energy_initial = 0.0;
   double energy_final = 0.0;
   // Whether this frame evaluated the energies (every SolverParams::energy_interval solves).
@@ -324,7 +334,8 @@ class Engine {
   Status ExtractTracked(FrameResult* result);
   Status NonRigid(FrameResult* result);
   // Moves the rigid part of the field into the camera pose once it exceeds
-  // EngineParams::field_rigid_threshold (the deformed surface stays where the camera sees it).
+  // EngineParams::field_rigid_threshold (the deformed surface stays where the camera sees it), and
+  // decides from the same measurement whether the field is static (EngineParams::static_levels).
   Status FactorRigidMotion(FrameResult* result);
   bool SparseEnabled() const;
   // The dense colour term is asked for (SolverParams::w_photo > 0 on the non-rigid path) and not
@@ -348,11 +359,18 @@ class Engine {
   // Frames since FactorRigidMotion last measured the field's rigid part (it does every
   // kFieldRigidInterval frames).
   int frames_since_rigid_check_ = 0;
+  // Frames since the field's state was last measured, and whether it was found static then (the
+  // solve then uses EngineParams::static_levels; Reset and a resume start as deforming).
+  int frames_since_state_check_ = 0;
+  bool field_static_ = false;
   // The colour's registration, measured on the first frames of a model (Reset starts again), and
   // its verdict for Preprocess on the prefetch thread.
   ColourRegistration colour_check_;
   std::atomic<ColourRegistration::Verdict> colour_verdict_{ColourRegistration::Verdict::kUndecided};
   static constexpr int kFieldRigidInterval = 30;
+  // The field's state for EngineParams::static_levels is measured this often: a third of a second
+  // at 30 Hz decides, and a scene that starts to deform is back on every level within as long.
+  static constexpr int kFieldStateInterval = 10;
   // With the dense colour term: it corrects the camera's drift along surfaces (which depth-only ICP
   // leaves) through the field, as a rigid part this moves into the pose (rigid scene, 60 frames:
   // non-rigid displacement 0.95 mm checked every 30 frames, 0.70 every 10).

@@ -24,9 +24,10 @@ Status HierarchicalSolver::Prepare(const DeviceLattice& lattice, uint32_t slots,
     return InvalidArgument("on bricks of 8 voxels the hierarchy has at most 4 levels (spacing 8)");
   lattice_ = lattice;
   fine_active_ = &fine;
+  // Levels kept for a frame that needs fewer keep their buffers for the next that needs them.
   while (int(levels_.size()) < levels - 1) levels_.push_back(std::make_unique<Level>(ops_, params_));
-  levels_.resize(std::max(0, levels - 1));
-  for (size_t i = 0; i < levels_.size(); ++i) {
+  coarse_ = std::max(0, std::min(levels_in_use_ > 0 ? levels_in_use_ : levels, levels) - 1);
+  for (int i = 0; i < coarse_; ++i) {
     levels_[i]->spacing = 2 << i;
     VD_RETURN_IF_ERROR(BuildLevel(slots, fine, levels_[i].get()));
   }
@@ -48,13 +49,13 @@ StatusOr<SolverSummary> HierarchicalSolver::Solve(const ocl::Buffer<vd_float4>& 
   }
 
   const size_t nc = fine_.num_constraints();
-  const bool coarse = !levels_.empty() && params.coarse_flip_flop_iterations > 0 && nc > 0;
+  const bool coarse = coarse_ > 0 && params.coarse_flip_flop_iterations > 0 && nc > 0;
   if (coarse && params.cache_btb_coarse) {
     VD_RETURN_IF_ERROR(SolveCoarseFromMoments(fine, nc, &summary));
   } else if (coarse) {
     // Without the cache the constraints are re-expressed on each level and sorted. Coarsest first;
     // each level restricts the current fine state, so it solves for what the coarser levels left.
-    const int top = int(levels_.size()) - 1;
+    const int top = coarse_ - 1;
     for (int i = top; i >= 0; --i) {
       Level& L = *levels_[i];
       if (L.active.count == 0) continue;
@@ -97,7 +98,7 @@ Status HierarchicalSolver::SolveLevel(const DeviceActiveSet& fine, Level& L, Sol
 
 Status HierarchicalSolver::SolveCoarseFromMoments(const DeviceActiveSet& fine, size_t nc, SolverSummary* summary) {
   ocl::Context& ctx = ops_->ctx();
-  const int top = int(levels_.size()) - 1;
+  const int top = coarse_ - 1;
   // Every level's moments at the fine state of the solve's start: the first level's from the fine
   // constraints, each level above from the one below (the same sums, shared/hierarchy.h
   // vd_level_moments_up, without walking the constraints again).

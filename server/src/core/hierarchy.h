@@ -40,7 +40,12 @@ class HierarchicalSolver {
     return fine_.WriteBack(def_pos, def_rot);
   }
 
-  int num_levels() const { return 1 + int(levels_.size()); }
+  // Levels the next Prepare builds and the solve after it uses, 1 .. params.levels (0: all of
+  // params.levels): the engine solves a static field on the fine level alone
+  // (EngineParams::static_levels).
+  void set_levels(int levels) { levels_in_use_ = levels; }
+  // Levels of the last Prepare.
+  int num_levels() const { return 1 + coarse_; }
   // Active points of level l (0 = fine).
   size_t active_points(int l) const { return l == 0 ? (fine_active_ ? fine_active_->count : 0) : levels_[l - 1]->active.count; }
   DeviceSolver& fine() { return fine_; }
@@ -76,6 +81,9 @@ class HierarchicalSolver {
   const DeviceActiveSet* fine_active_ = nullptr;
   DeviceLattice lattice_;
   std::vector<std::unique_ptr<Level>> levels_;
+  // set_levels' request, and the coarse levels (of levels_) the last Prepare built.
+  int levels_in_use_ = 0;
+  int coarse_ = 0;
 };
 
 }  // namespace vd
