@@ -966,14 +966,14 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
 }
 
 Status Engine::NonRigid(FrameResult* result) {
-  // M from the surface extracted after the last frame; new members start from the field.
+  // M from the surface extracted after the last frame; new members start from the field. A static
+  // field is solved on fewer levels (EngineParams::static_levels).
+  solver_->set_levels(field_static_ && params_.static_levels > 0 ? params_.static_levels : 0);
   if (bricks_) {
-    solver_->set_levels(field_static_ && params_.static_levels > 0 ? params_.static_levels : 0);
     VD_RETURN_IF_ERROR(PrepareBricks(result));
     VD_RETURN_IF_ERROR(
         solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, solved_));
   } else {
-    solver_->set_levels(field_static_ && params_.static_levels > 0 ? params_.static_levels : 0);
     const std::optional<SolveView> view = ViewToSolve();
     VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_, &solved_, view ? &*view : nullptr));
     VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
