@@ -968,7 +968,7 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
 Status Engine::NonRigid(FrameResult* result) {
   // M from the surface extracted after the last frame; new members start from the field. A static
   // field is solved on fewer levels (EngineParams::static_levels).
-  solver_->set_levels(field_static_ && params_.static_levels > 0 ? params_.static_levels : 0);
+  solver_->set_levels(field_static_ ? params_.static_levels : 0);
   if (bricks_) {
     VD_RETURN_IF_ERROR(PrepareBricks(result));
     VD_RETURN_IF_ERROR(

@@ -206,12 +206,13 @@ struct FrameResult {
   int64_t bricks_grown = 0;
   // Non-rigid solve of this frame: constraint rows (dense pixels + 3 per sparse match), E_total before and after (0 when rigid).
   int dense_correspondences = 0;
-  // Levels of the hierarchy it used (fewer while the field is static, EngineParams::static_levels).
-  int solver_levels = 0;
   double energy_initial = 0.0;
   double energy_final = 0.0;
   // Whether this frame evaluated the energies (every SolverParams::energy_interval solves).
   bool energies_evaluated = false;
+  // Levels of the hierarchy the solve used (fewer while the field is static,
+  // EngineParams::static_levels).
+  int solver_levels = 0;
   // Sparse features of this frame: keypoints detected, lifted into the canonical pose, matches
   // used as E_sparse constraints, and the detection + description time (off the frame's thread
   // when prefetched).
