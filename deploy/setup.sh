@@ -22,7 +22,7 @@ while [ $# -gt 0 ]; do
 done
 
 packages=(cmake ninja-build g++ pkg-config ccache libgtest-dev libbenchmark-dev
-  libopenni2-dev libopencv-dev libeigen3-dev liblcm-dev liblcm-bin libglib2.0-dev
+  libopenni2-dev libopencv-dev libjpeg-dev libeigen3-dev liblcm-dev liblcm-bin libglib2.0-dev
   libdraco-dev draco pocl-opencl-icd ocl-icd-opencl-dev opencl-headers
   opencl-clhpp-headers clinfo iproute2 procps libssl-dev clang libclang-rt-14-dev
   libboost-dev nodejs)

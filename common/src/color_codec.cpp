@@ -1,11 +1,17 @@
-// Colour codecs: none, raw BGR8, JPEG. The JPEG frame header is checked before decoding so a
-// stream declaring a huge image is refused without allocating for it.
+// Colour codecs: none, raw BGR8, JPEG (libjpeg-turbo, called directly: BGR in and out without
+// OpenCV's per-pixel swap, same bytes and pixels). The JPEG frame header is checked before
+// decoding so a stream declaring a huge image is refused without allocating for it.
 #include <algorithm>
+#include <climits>
+#include <csetjmp>
+#include <cstdio>
+#include <cstdlib>
 #include <exception>
 #include <string>
 #include <vector>
 
-#include <opencv2/imgcodecs.hpp>
+// After <cstdio>: jpeglib.h uses FILE without including it.
+#include <jpeglib.h>
 
 #include "vd/common/codecs.h"
 
@@ -56,22 +62,110 @@ Status CheckJpegHeader(const uint8_t* d, size_t n, int width, int height) {
   return DataLoss("colour JPEG ends before its frame header");
 }
 
+// libjpeg reports a fatal error by calling error_exit, which must not return: it jumps back to
+// DecodeJpegRows. Warnings (corrupt or truncated data, which libjpeg would fill with grey) are
+// kept as the first message and make the decode fail.
+struct JpegErrors {
+  jpeg_error_mgr mgr;
+  std::jmp_buf fatal;
+  char first_message[JMSG_LENGTH_MAX];
+};
+
+[[noreturn]] void JpegFatal(j_common_ptr cinfo) {
+  auto* errors = reinterpret_cast<JpegErrors*>(cinfo->err);
+  (*cinfo->err->format_message)(cinfo, errors->first_message);
+  std::longjmp(errors->fatal, 1);
+}
+
+// Replaces libjpeg's printing to stderr: keeps the first warning's text.
+void JpegMessage(j_common_ptr cinfo) {
+  auto* errors = reinterpret_cast<JpegErrors*>(cinfo->err);
+  if (errors->first_message[0] == 0) (*cinfo->err->format_message)(cinfo, errors->first_message);
+}
+
+// The decode proper, between setjmp and the longjmp of a fatal error: only plain data lives in
+// this frame, so the jump skips no destructor. Rows go straight into `out` (BGR, `step` bytes a
+// row): libjpeg-turbo converts to BGR itself (JCS_EXT_BGR), where OpenCV 4.6's imdecode asks for
+// RGB and swaps every pixel in a scalar loop, 1.8 ms of the server's receive thread per 640x480
+// frame (docs/BENCHMARKS.md, "Session 31").
+bool DecodeJpegRows(jpeg_decompress_struct* cinfo, JpegErrors* errors, const uint8_t* data, size_t size, uint8_t* out,
+                    size_t step, int width, int height) {
+  if (setjmp(errors->fatal)) return false;
+  jpeg_mem_src(cinfo, data, static_cast<unsigned long>(size));
+  if (jpeg_read_header(cinfo, TRUE) != JPEG_HEADER_OK) return false;
+  if (static_cast<int>(cinfo->image_width) != width || static_cast<int>(cinfo->image_height) != height) return false;
+  cinfo->out_color_space = JCS_EXT_BGR;
+  jpeg_start_decompress(cinfo);
+  if (cinfo->output_components != 3) return false;
+  while (cinfo->output_scanline < cinfo->output_height) {
+    JSAMPROW row = out + static_cast<size_t>(cinfo->output_scanline) * step;
+    if (jpeg_read_scanlines(cinfo, &row, 1) != 1) return false;
+  }
+  jpeg_finish_decompress(cinfo);
+  return true;
+}
+
 StatusOr<cv::Mat> DecodeJpeg(const uint8_t* data, size_t size, int width, int height) {
   VD_RETURN_IF_ERROR(CheckJpegHeader(data, size, width, height));
-  if (size > static_cast<size_t>(INT32_MAX)) return DataLoss("colour JPEG larger than 2 GB");
-  cv::Mat color;
-  try {
-    const cv::Mat buf(1, static_cast<int>(size), CV_8UC1, const_cast<uint8_t*>(data));
-    // EXIF orientation would rotate the image away from the depth grid.
-    color = cv::imdecode(buf, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
-  } catch (const std::exception& e) {
-    return DataLoss(std::string("colour JPEG decoding failed: ") + e.what());
-  }
-  if (color.empty()) return DataLoss("colour JPEG could not be decoded (" + std::to_string(size) + " bytes)");
-  if (color.type() != CV_8UC3 || color.cols != width || color.rows != height)
-    return DataLoss("colour JPEG decoded to " + SizeText(color.cols, color.rows) + " with " +
-                    std::to_string(color.channels()) + " channels, expected " + SizeText(width, height) + " BGR");
+  if (size > static_cast<size_t>(ULONG_MAX)) return DataLoss("colour JPEG larger than libjpeg reads");
+  cv::Mat color(height, width, CV_8UC3);
+  JpegErrors errors;
+  errors.first_message[0] = 0;
+  jpeg_decompress_struct cinfo;
+  cinfo.err = jpeg_std_error(&errors.mgr);
+  errors.mgr.error_exit = JpegFatal;
+  errors.mgr.output_message = JpegMessage;
+  jpeg_create_decompress(&cinfo);
+  const bool decoded = DecodeJpegRows(&cinfo, &errors, data, size, color.data, color.step, width, height);
+  const long warnings = errors.mgr.num_warnings;
+  jpeg_destroy_decompress(&cinfo);
+  const std::string why = errors.first_message[0] ? std::string(": ") + errors.first_message : std::string();
+  if (!decoded) return DataLoss("colour JPEG could not be decoded (" + std::to_string(size) + " bytes)" + why);
+  // Corrupt or truncated entropy data: libjpeg would hand back an image partly filled with grey.
+  if (warnings > 0) return DataLoss("colour JPEG is corrupt (" + std::to_string(size) + " bytes)" + why);
   return color;
+}
+
+// The encode proper, between setjmp and the longjmp of a fatal error (plain data only, as in
+// DecodeJpegRows). libjpeg reads BGR rows directly (JCS_EXT_BGR), with the settings OpenCV 4.6's
+// imencode uses (libjpeg's defaults at `quality`, baseline, standard Huffman tables), so the bytes
+// are the same as imencode's without its per-pixel swap to RGB.
+bool EncodeJpegRows(jpeg_compress_struct* cinfo, JpegErrors* errors, const cv::Mat& color, int quality,
+                    unsigned char** out, unsigned long* out_size) {
+  if (setjmp(errors->fatal)) return false;
+  jpeg_mem_dest(cinfo, out, out_size);
+  cinfo->image_width = static_cast<JDIMENSION>(color.cols);
+  cinfo->image_height = static_cast<JDIMENSION>(color.rows);
+  cinfo->input_components = 3;
+  cinfo->in_color_space = JCS_EXT_BGR;
+  jpeg_set_defaults(cinfo);
+  jpeg_set_quality(cinfo, quality, TRUE);
+  jpeg_start_compress(cinfo, TRUE);
+  while (cinfo->next_scanline < cinfo->image_height) {
+    JSAMPROW row = const_cast<uint8_t*>(color.ptr<uint8_t>(static_cast<int>(cinfo->next_scanline)));
+    if (jpeg_write_scanlines(cinfo, &row, 1) != 1) return false;
+  }
+  jpeg_finish_compress(cinfo);
+  return true;
+}
+
+StatusOr<std::vector<uint8_t>> EncodeJpeg(const cv::Mat& color, int quality) {
+  JpegErrors errors;
+  errors.first_message[0] = 0;
+  jpeg_compress_struct cinfo;
+  cinfo.err = jpeg_std_error(&errors.mgr);
+  errors.mgr.error_exit = JpegFatal;
+  errors.mgr.output_message = JpegMessage;
+  jpeg_create_compress(&cinfo);
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;
+  const bool encoded = EncodeJpegRows(&cinfo, &errors, color, quality, &buffer, &size);
+  jpeg_destroy_compress(&cinfo);
+  std::vector<uint8_t> out;
+  if (encoded && buffer != nullptr) out.assign(buffer, buffer + size);
+  std::free(buffer);
+  if (!encoded) return Internal(std::string("JPEG encoding failed: ") + errors.first_message);
+  return out;
 }
 
 StatusOr<cv::Mat> DecodeRawBgr8(const uint8_t* data, size_t size, int width, int height) {
@@ -103,14 +197,7 @@ StatusOr<std::vector<uint8_t>> EncodeColor(const cv::Mat& color, ColorEncoding e
   }
   if (jpeg_quality < 1 || jpeg_quality > 100)
     return InvalidArgument("jpeg_quality = " + std::to_string(jpeg_quality) + " violates 1 <= jpeg_quality <= 100");
-  std::vector<uint8_t> out;
-  try {
-    if (!cv::imencode(".jpg", color, out, {cv::IMWRITE_JPEG_QUALITY, jpeg_quality}))
-      return Internal("OpenCV could not JPEG-encode the colour image");
-  } catch (const std::exception& e) {
-    return Internal(std::string("JPEG encoding failed: ") + e.what());
-  }
-  return out;
+  return EncodeJpeg(color, jpeg_quality);
 }
 
 StatusOr<cv::Mat> DecodeColor(const uint8_t* data, size_t size, ColorEncoding encoding, int width, int height) {

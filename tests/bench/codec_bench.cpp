@@ -116,6 +116,28 @@ void BM_JpegDecode(benchmark::State& state) {
   state.SetLabel(im.label);
 }
 
+// The peers: OpenCV's imencode/imdecode on the same image, which DecodeColor/EncodeColor used
+// before calling libjpeg directly (same bytes and pixels; OpenCV 4.6 swaps BGR and RGB per pixel).
+void BM_JpegEncodeOpenCv(benchmark::State& state) {
+  const Images& im = TestImages();
+  for (auto _ : state) {
+    std::vector<uint8_t> out;
+    cv::imencode(".jpg", im.color, out, {cv::IMWRITE_JPEG_QUALITY, static_cast<int>(state.range(0))});
+    benchmark::DoNotOptimize(out.data());
+  }
+  state.SetLabel(im.label);
+}
+
+void BM_JpegDecodeOpenCv(benchmark::State& state) {
+  const Images& im = TestImages();
+  const std::vector<uint8_t> bytes = *EncodeColor(im.color, ColorEncoding::kJpeg, static_cast<int>(state.range(0)));
+  for (auto _ : state) {
+    const cv::Mat color = cv::imdecode(bytes, cv::IMREAD_COLOR | cv::IMREAD_IGNORE_ORIENTATION);
+    benchmark::DoNotOptimize(color.data);
+  }
+  state.SetLabel(im.label);
+}
+
 // UV sphere of radius 0.5 m: 158 rings x 316 segments = 99,224 triangles, 49,614 vertices, with
 // a smooth colour field like a textured reconstruction.
 const TriangleMesh& BenchMesh() {
@@ -343,6 +365,8 @@ BENCHMARK_CAPTURE(BM_DepthDecode, png16_level6, DepthEncoding::kPng16, 6)->Unit(
 BENCHMARK_CAPTURE(BM_DepthDecode, rvl, DepthEncoding::kRvl, -1)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_JpegEncode)->Arg(75)->Arg(90)->Arg(95)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_JpegDecode)->Arg(75)->Arg(90)->Arg(95)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_JpegEncodeOpenCv)->Arg(90)->Unit(benchmark::kMillisecond);
+BENCHMARK(BM_JpegDecodeOpenCv)->Arg(90)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DracoEncode)->Arg(3)->Arg(7)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DracoEncodeCanonical)->Arg(3)->Arg(7)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_DracoDecode)->Arg(3)->Arg(7)->Unit(benchmark::kMillisecond);

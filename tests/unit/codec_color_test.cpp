@@ -101,6 +101,49 @@ TEST(ColorCodecTest, GreyJpegDecodesToThreeChannels) {
   EXPECT_EQ(decoded->type(), CV_8UC3);
 }
 
+// The codec calls libjpeg directly, converting to and from BGR inside libjpeg-turbo. It must give
+// the bytes and pixels OpenCV's imencode/imdecode give (they use the same libjpeg, by way of RGB):
+// baseline 4:2:0 at several qualities, progressive, greyscale, and a view into a larger image.
+TEST(ColorCodecTest, JpegIsBitIdenticalToOpenCv) {
+  const cv::Mat big = TestColor(200, 150);
+  const cv::Mat roi = big(cv::Rect(7, 5, 160, 120));
+  for (const cv::Mat& color : {TestColor(160, 120), roi}) {
+    for (int quality : {50, 75, 90, 95}) {
+      auto ours = EncodeColor(color, ColorEncoding::kJpeg, quality);
+      ASSERT_TRUE(ours.ok()) << ours.status().ToString();
+      std::vector<uint8_t> opencv;
+      ASSERT_TRUE(cv::imencode(".jpg", color, opencv, {cv::IMWRITE_JPEG_QUALITY, quality}));
+      EXPECT_EQ(*ours, opencv) << "quality " << quality;
+      auto decoded = DecodeColor(ours->data(), ours->size(), ColorEncoding::kJpeg, 160, 120);
+      ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+      const cv::Mat reference = cv::imdecode(*ours, cv::IMREAD_COLOR);
+      EXPECT_EQ(cv::norm(*decoded, reference, cv::NORM_INF), 0.0) << "quality " << quality;
+    }
+  }
+  std::vector<uint8_t> progressive, grey;
+  ASSERT_TRUE(cv::imencode(".jpg", TestColor(160, 120), progressive, {cv::IMWRITE_JPEG_PROGRESSIVE, 1}));
+  cv::Mat grey_image;
+  cv::cvtColor(TestColor(160, 120), grey_image, cv::COLOR_BGR2GRAY);
+  ASSERT_TRUE(cv::imencode(".jpg", grey_image, grey));
+  for (const std::vector<uint8_t>* bytes : {&progressive, &grey}) {
+    auto decoded = DecodeColor(bytes->data(), bytes->size(), ColorEncoding::kJpeg, 160, 120);
+    ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+    EXPECT_EQ(cv::norm(*decoded, cv::imdecode(*bytes, cv::IMREAD_COLOR), cv::NORM_INF), 0.0);
+  }
+}
+
+// A JPEG cut short decodes in libjpeg (and in OpenCV) to an image whose rest is grey. The codec
+// refuses it: a frame with a grey band would be fused as if it were seen.
+TEST(ColorCodecTest, TruncatedJpegIsAnError) {
+  auto bytes = EncodeColor(TestColor(160, 120), ColorEncoding::kJpeg, 90);
+  ASSERT_TRUE(bytes.ok());
+  const std::vector<uint8_t> cut(bytes->begin(), bytes->begin() + bytes->size() / 2);
+  ASSERT_FALSE(cv::imdecode(cut, cv::IMREAD_COLOR).empty()) << "OpenCV accepts the cut image";
+  const Status status = DecodeColor(cut.data(), cut.size(), ColorEncoding::kJpeg, 160, 120).status();
+  EXPECT_EQ(status.code(), StatusCode::kDataLoss);
+  EXPECT_NE(status.message().find("corrupt"), std::string::npos) << status.message();
+}
+
 TEST(ColorCodecTest, EncodeRejectsBadInput) {
   EXPECT_EQ(EncodeColor(cv::Mat(), ColorEncoding::kJpeg).status().code(), StatusCode::kInvalidArgument);
   EXPECT_EQ(EncodeColor(cv::Mat(4, 4, CV_8UC1), ColorEncoding::kJpeg).status().code(), StatusCode::kInvalidArgument);
