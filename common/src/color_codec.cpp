@@ -77,6 +77,21 @@ struct JpegErrors {
   std::longjmp(errors->fatal, 1);
 }
 
+// A progressive JPEG may hold any number of scans, and libjpeg decodes every one: a few kilobytes of
+// tiny scans cost seconds of CPU (libjpeg-turbo's djpeg -maxscans guards against the same). Our
+// capture sends baseline JPEG (1 scan); libjpeg's simple progression has 10; 3 components with one
+// AC coefficient per scan would need 190. Beyond kMaxJpegScans the frame is refused.
+constexpr int kMaxJpegScans = 200;
+
+void JpegScanLimit(j_common_ptr cinfo) {
+  if (!cinfo->is_decompressor) return;
+  const int scans = reinterpret_cast<j_decompress_ptr>(cinfo)->input_scan_number;
+  if (scans <= kMaxJpegScans) return;
+  auto* errors = reinterpret_cast<JpegErrors*>(cinfo->err);
+  std::snprintf(errors->first_message, sizeof(errors->first_message), "more than %d scans", kMaxJpegScans);
+  std::longjmp(errors->fatal, 1);
+}
+
 // Replaces libjpeg's printing to stderr: keeps the first warning's text.
 void JpegMessage(j_common_ptr cinfo) {
   auto* errors = reinterpret_cast<JpegErrors*>(cinfo->err);
@@ -115,7 +130,10 @@ StatusOr<cv::Mat> DecodeJpeg(const uint8_t* data, size_t size, int width, int he
   cinfo.err = jpeg_std_error(&errors.mgr);
   errors.mgr.error_exit = JpegFatal;
   errors.mgr.output_message = JpegMessage;
+  jpeg_progress_mgr progress{};
+  progress.progress_monitor = JpegScanLimit;
   jpeg_create_decompress(&cinfo);
+  cinfo.progress = &progress;
   const bool decoded = DecodeJpegRows(&cinfo, &errors, data, size, color.data, color.step, width, height);
   const long warnings = errors.mgr.num_warnings;
   jpeg_destroy_decompress(&cinfo);

@@ -1,6 +1,11 @@
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <string>
 #include <vector>
+
+// After <cstdio>: jpeglib.h uses FILE without including it.
+#include <jpeglib.h>
 
 #include <gtest/gtest.h>
 #include <opencv2/imgcodecs.hpp>
@@ -142,6 +147,57 @@ TEST(ColorCodecTest, TruncatedJpegIsAnError) {
   const Status status = DecodeColor(cut.data(), cut.size(), ColorEncoding::kJpeg, 160, 120).status();
   EXPECT_EQ(status.code(), StatusCode::kDataLoss);
   EXPECT_NE(status.message().find("corrupt"), std::string::npos) << status.message();
+}
+
+// A progressive JPEG of `color` with every AC coefficient in its own scan per component: 190
+// scans, or 380 when each is also sent in two successive-approximation passes (all valid JPEG).
+std::vector<uint8_t> ManyScanJpeg(const cv::Mat& color, bool refine) {
+  std::vector<jpeg_scan_info> scans;
+  const int al = refine ? 1 : 0;
+  scans.push_back({3, {0, 1, 2, 0}, 0, 0, 0, al});
+  if (refine) scans.push_back({3, {0, 1, 2, 0}, 0, 0, 1, 0});
+  for (int pass = 0; pass < (refine ? 2 : 1); ++pass)
+    for (int c = 0; c < 3; ++c)
+      for (int k = 1; k < 64; ++k) scans.push_back({1, {c, 0, 0, 0}, k, k, pass == 1 ? 1 : 0, pass == 0 ? al : 0});
+  jpeg_compress_struct cinfo;
+  jpeg_error_mgr err;
+  cinfo.err = jpeg_std_error(&err);
+  jpeg_create_compress(&cinfo);
+  unsigned char* buffer = nullptr;
+  unsigned long size = 0;
+  jpeg_mem_dest(&cinfo, &buffer, &size);
+  cinfo.image_width = color.cols;
+  cinfo.image_height = color.rows;
+  cinfo.input_components = 3;
+  cinfo.in_color_space = JCS_EXT_BGR;
+  jpeg_set_defaults(&cinfo);
+  cinfo.scan_info = scans.data();
+  cinfo.num_scans = int(scans.size());
+  jpeg_start_compress(&cinfo, TRUE);
+  for (int y = 0; y < color.rows; ++y) {
+    JSAMPROW row = const_cast<uint8_t*>(color.ptr<uint8_t>(y));
+    jpeg_write_scanlines(&cinfo, &row, 1);
+  }
+  jpeg_finish_compress(&cinfo);
+  jpeg_destroy_compress(&cinfo);
+  std::vector<uint8_t> out(buffer, buffer + size);
+  std::free(buffer);
+  return out;
+}
+
+// A progressive JPEG made of hundreds of tiny scans costs libjpeg a decode per scan (seconds for a
+// crafted few kilobytes): beyond 200 scans the frame is refused; 190 still decode as OpenCV does.
+TEST(ColorCodecTest, JpegWithTooManyScansIsRefused) {
+  const cv::Mat color = TestColor(160, 120);
+  const std::vector<uint8_t> many = ManyScanJpeg(color, false), too_many = ManyScanJpeg(color, true);
+  ASSERT_FALSE(cv::imdecode(too_many, cv::IMREAD_COLOR).empty()) << "a valid JPEG";
+  auto decoded = DecodeColor(many.data(), many.size(), ColorEncoding::kJpeg, 160, 120);
+  ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+  EXPECT_EQ(cv::norm(*decoded, cv::imdecode(many, cv::IMREAD_COLOR), cv::NORM_INF), 0.0);
+  EXPECT_LT(MeanAbsDiff(color, *decoded), 3.0);  // libjpeg's default quality, 75
+  const Status status = DecodeColor(too_many.data(), too_many.size(), ColorEncoding::kJpeg, 160, 120).status();
+  EXPECT_EQ(status.code(), StatusCode::kDataLoss);
+  EXPECT_NE(status.message().find("more than 200 scans"), std::string::npos) << status.message();
 }
 
 TEST(ColorCodecTest, EncodeRejectsBadInput) {
