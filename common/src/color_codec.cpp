@@ -12,6 +12,8 @@
 
 // After <cstdio>: jpeglib.h uses FILE without including it.
 #include <jpeglib.h>
+// After jpeglib.h: the warning codes (JWRN_*) and ERREXIT.
+#include <jerror.h>
 
 #include "vd/common/codecs.h"
 
@@ -63,18 +65,40 @@ Status CheckJpegHeader(const uint8_t* d, size_t n, int width, int height) {
 }
 
 // libjpeg reports a fatal error by calling error_exit, which must not return: it jumps back to
-// DecodeJpegRows. Warnings (corrupt or truncated data, which libjpeg would fill with grey) are
-// kept as the first message and make the decode fail.
+// the *Rows function that called setjmp. Warnings are sorted by emit_message: corrupt or truncated
+// data (which libjpeg would fill with grey) marks the image corrupt; the benign ones do not.
 struct JpegErrors {
   jpeg_error_mgr mgr;
   std::jmp_buf fatal;
+  // The fatal error's or the first corrupting warning's text ("" when none).
   char first_message[JMSG_LENGTH_MAX];
+  // A warning that means part of the image is not what was encoded.
+  bool corrupt;
 };
 
 [[noreturn]] void JpegFatal(j_common_ptr cinfo) {
   auto* errors = reinterpret_cast<JpegErrors*>(cinfo->err);
   (*cinfo->err->format_message)(cinfo, errors->first_message);
   std::longjmp(errors->fatal, 1);
+}
+
+// Replaces libjpeg's printing of warnings and traces (level >= 0: traces, never printed). Benign:
+// bytes between segments (webcam MJPEG often has them). Anything else (a bad Huffman code, data
+// ending before the image is complete, ...) is corrupt.
+void JpegWarning(j_common_ptr cinfo, int level) {
+  if (level >= 0) return;
+  if (cinfo->err->msg_code == JWRN_EXTRANEOUS_DATA) return;
+  auto* errors = reinterpret_cast<JpegErrors*>(cinfo->err);
+  if (!errors->corrupt) (*cinfo->err->format_message)(cinfo, errors->first_message);
+  errors->corrupt = true;
+}
+
+void InitJpegErrors(JpegErrors* errors) {
+  jpeg_std_error(&errors->mgr);
+  errors->mgr.error_exit = JpegFatal;
+  errors->mgr.emit_message = JpegWarning;
+  errors->first_message[0] = 0;
+  errors->corrupt = false;
 }
 
 // A progressive JPEG may hold any number of scans, and libjpeg decodes every one: a few kilobytes of
@@ -92,20 +116,17 @@ void JpegScanLimit(j_common_ptr cinfo) {
   std::longjmp(errors->fatal, 1);
 }
 
-// Replaces libjpeg's printing to stderr: keeps the first warning's text.
-void JpegMessage(j_common_ptr cinfo) {
-  auto* errors = reinterpret_cast<JpegErrors*>(cinfo->err);
-  if (errors->first_message[0] == 0) (*cinfo->err->format_message)(cinfo, errors->first_message);
-}
-
 // The decode proper, between setjmp and the longjmp of a fatal error: only plain data lives in
-// this frame, so the jump skips no destructor. Rows go straight into `out` (BGR, `step` bytes a
-// row): libjpeg-turbo converts to BGR itself (JCS_EXT_BGR), where OpenCV 4.6's imdecode asks for
-// RGB and swaps every pixel in a scalar loop, 1.8 ms of the server's receive thread per 640x480
-// frame (docs/BENCHMARKS.md, "Session 31").
-bool DecodeJpegRows(jpeg_decompress_struct* cinfo, JpegErrors* errors, const uint8_t* data, size_t size, uint8_t* out,
-                    size_t step, int width, int height) {
+// this frame, so the jump skips no destructor, and every libjpeg call that can fail (creation
+// included) comes after the setjmp. Rows go straight into `out` (BGR, `step` bytes a row):
+// libjpeg-turbo converts to BGR itself (JCS_EXT_BGR), where OpenCV 4.6's imdecode asks for RGB and
+// swaps every pixel in a scalar loop, 1.8 ms of the server's receive thread per 640x480 frame
+// (docs/BENCHMARKS.md, "Session 31").
+bool DecodeJpegRows(jpeg_decompress_struct* cinfo, JpegErrors* errors, jpeg_progress_mgr* progress,
+                    const uint8_t* data, size_t size, uint8_t* out, size_t step, int width, int height) {
   if (setjmp(errors->fatal)) return false;
+  jpeg_create_decompress(cinfo);
+  cinfo->progress = progress;
   jpeg_mem_src(cinfo, data, static_cast<unsigned long>(size));
   if (jpeg_read_header(cinfo, TRUE) != JPEG_HEADER_OK) return false;
   if (static_cast<int>(cinfo->image_width) != width || static_cast<int>(cinfo->image_height) != height) return false;
@@ -123,35 +144,75 @@ bool DecodeJpegRows(jpeg_decompress_struct* cinfo, JpegErrors* errors, const uin
 StatusOr<cv::Mat> DecodeJpeg(const uint8_t* data, size_t size, int width, int height) {
   VD_RETURN_IF_ERROR(CheckJpegHeader(data, size, width, height));
   if (size > static_cast<size_t>(ULONG_MAX)) return DataLoss("colour JPEG larger than libjpeg reads");
+  // Some cameras' JPEG has no end marker. libjpeg reads ahead for one and would warn of a premature
+  // end even when the data is complete, so the marker is added: complete data then decodes cleanly,
+  // and data cut short still meets the marker too early (a corrupting warning).
+  std::vector<uint8_t> ended;
+  if (data[size - 2] != 0xFF || data[size - 1] != 0xD9) {
+    ended.reserve(size + 2);
+    ended.assign(data, data + size);
+    ended.push_back(0xFF);
+    ended.push_back(0xD9);
+    data = ended.data();
+    size = ended.size();
+  }
   cv::Mat color(height, width, CV_8UC3);
   JpegErrors errors;
-  errors.first_message[0] = 0;
-  jpeg_decompress_struct cinfo;
-  cinfo.err = jpeg_std_error(&errors.mgr);
-  errors.mgr.error_exit = JpegFatal;
-  errors.mgr.output_message = JpegMessage;
+  InitJpegErrors(&errors);
   jpeg_progress_mgr progress{};
   progress.progress_monitor = JpegScanLimit;
-  jpeg_create_decompress(&cinfo);
-  cinfo.progress = &progress;
-  const bool decoded = DecodeJpegRows(&cinfo, &errors, data, size, color.data, color.step, width, height);
-  const long warnings = errors.mgr.num_warnings;
+  // Zeroed: jpeg_destroy_decompress is a no-op on a struct creation never reached.
+  jpeg_decompress_struct cinfo{};
+  cinfo.err = &errors.mgr;
+  const bool decoded = DecodeJpegRows(&cinfo, &errors, &progress, data, size, color.data, color.step, width, height);
   jpeg_destroy_decompress(&cinfo);
   const std::string why = errors.first_message[0] ? std::string(": ") + errors.first_message : std::string();
   if (!decoded) return DataLoss("colour JPEG could not be decoded (" + std::to_string(size) + " bytes)" + why);
-  // Corrupt or truncated entropy data: libjpeg would hand back an image partly filled with grey.
-  if (warnings > 0) return DataLoss("colour JPEG is corrupt (" + std::to_string(size) + " bytes)" + why);
+  if (errors.corrupt) return DataLoss("colour JPEG is corrupt (" + std::to_string(size) + " bytes)" + why);
   return color;
 }
 
-// The encode proper, between setjmp and the longjmp of a fatal error (plain data only, as in
-// DecodeJpegRows). libjpeg reads BGR rows directly (JCS_EXT_BGR), with the settings OpenCV 4.6's
-// imencode uses (libjpeg's defaults at `quality`, baseline, standard Huffman tables), so the bytes
-// are the same as imencode's without its per-pixel swap to RGB.
-bool EncodeJpegRows(jpeg_compress_struct* cinfo, JpegErrors* errors, const cv::Mat& color, int quality,
-                    unsigned char** out, unsigned long* out_size) {
+// The encoder's output: a malloc'd buffer EncodeJpeg owns on every path (libjpeg's jpeg_mem_dest
+// frees and replaces its buffer as it grows without telling the caller, so a failure midway would
+// leave the caller a freed pointer). Growth failing is a libjpeg error (longjmp).
+struct JpegSink {
+  jpeg_destination_mgr mgr;
+  unsigned char* data;
+  size_t capacity;
+  j_compress_ptr cinfo;
+};
+
+void SinkGrow(JpegSink* sink, size_t used) {
+  const size_t capacity = std::max<size_t>(2 * sink->capacity, 64 * 1024);
+  auto* grown = static_cast<unsigned char*>(std::realloc(sink->data, capacity));
+  if (grown == nullptr) ERREXIT(sink->cinfo, JERR_OUT_OF_MEMORY);
+  sink->data = grown;
+  sink->capacity = capacity;
+  sink->mgr.next_output_byte = grown + used;
+  sink->mgr.free_in_buffer = capacity - used;
+}
+
+void SinkInit(j_compress_ptr cinfo) { SinkGrow(reinterpret_cast<JpegSink*>(cinfo->dest), 0); }
+
+boolean SinkEmpty(j_compress_ptr cinfo) {
+  auto* sink = reinterpret_cast<JpegSink*>(cinfo->dest);
+  // libjpeg calls this when the buffer is full (free_in_buffer is 0, whatever it says).
+  SinkGrow(sink, sink->capacity);
+  return TRUE;
+}
+
+void SinkTerm(j_compress_ptr) {}
+
+// The encode proper, between setjmp and the longjmp of a fatal error (plain data only, creation
+// after the setjmp, as in DecodeJpegRows). libjpeg reads BGR rows directly (JCS_EXT_BGR), with the
+// settings OpenCV 4.6's imencode uses (libjpeg's defaults at `quality`, baseline, standard Huffman
+// tables), so the bytes are the same as imencode's without its per-pixel swap to RGB.
+bool EncodeJpegRows(jpeg_compress_struct* cinfo, JpegErrors* errors, JpegSink* sink, const cv::Mat& color,
+                    int quality) {
   if (setjmp(errors->fatal)) return false;
-  jpeg_mem_dest(cinfo, out, out_size);
+  jpeg_create_compress(cinfo);
+  sink->cinfo = cinfo;
+  cinfo->dest = &sink->mgr;
   cinfo->image_width = static_cast<JDIMENSION>(color.cols);
   cinfo->image_height = static_cast<JDIMENSION>(color.rows);
   cinfo->input_components = 3;
@@ -169,19 +230,18 @@ bool EncodeJpegRows(jpeg_compress_struct* cinfo, JpegErrors* errors, const cv::M
 
 StatusOr<std::vector<uint8_t>> EncodeJpeg(const cv::Mat& color, int quality) {
   JpegErrors errors;
-  errors.first_message[0] = 0;
-  jpeg_compress_struct cinfo;
-  cinfo.err = jpeg_std_error(&errors.mgr);
-  errors.mgr.error_exit = JpegFatal;
-  errors.mgr.output_message = JpegMessage;
-  jpeg_create_compress(&cinfo);
-  unsigned char* buffer = nullptr;
-  unsigned long size = 0;
-  const bool encoded = EncodeJpegRows(&cinfo, &errors, color, quality, &buffer, &size);
+  InitJpegErrors(&errors);
+  JpegSink sink{};
+  sink.mgr.init_destination = SinkInit;
+  sink.mgr.empty_output_buffer = SinkEmpty;
+  sink.mgr.term_destination = SinkTerm;
+  jpeg_compress_struct cinfo{};
+  cinfo.err = &errors.mgr;
+  const bool encoded = EncodeJpegRows(&cinfo, &errors, &sink, color, quality);
   jpeg_destroy_compress(&cinfo);
   std::vector<uint8_t> out;
-  if (encoded && buffer != nullptr) out.assign(buffer, buffer + size);
-  std::free(buffer);
+  if (encoded) out.assign(sink.data, sink.data + (sink.capacity - sink.mgr.free_in_buffer));
+  std::free(sink.data);
   if (!encoded) return Internal(std::string("JPEG encoding failed: ") + errors.first_message);
   return out;
 }

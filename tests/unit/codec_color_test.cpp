@@ -149,6 +149,23 @@ TEST(ColorCodecTest, TruncatedJpegIsAnError) {
   EXPECT_NE(status.message().find("corrupt"), std::string::npos) << status.message();
 }
 
+// What cameras' own JPEG (webcam MJPEG) often carries is not corruption: stray bytes before the end
+// marker, or no end marker at all after complete image data. Both decode, as OpenCV decodes them.
+TEST(ColorCodecTest, BenignJpegQuirksDecode) {
+  auto bytes = EncodeColor(TestColor(160, 120), ColorEncoding::kJpeg, 90);
+  ASSERT_TRUE(bytes.ok());
+  ASSERT_GE(bytes->size(), 2u);
+  ASSERT_EQ((*bytes)[bytes->size() - 2], 0xFF);
+  ASSERT_EQ((*bytes)[bytes->size() - 1], 0xD9);
+  std::vector<uint8_t> stray(*bytes), no_end(bytes->begin(), bytes->end() - 2);
+  stray.insert(stray.end() - 2, {0x00, 0x11, 0x22, 0x33, 0x44});
+  for (const std::vector<uint8_t>* quirk : {&stray, &no_end}) {
+    auto decoded = DecodeColor(quirk->data(), quirk->size(), ColorEncoding::kJpeg, 160, 120);
+    ASSERT_TRUE(decoded.ok()) << decoded.status().ToString();
+    EXPECT_EQ(cv::norm(*decoded, cv::imdecode(*bytes, cv::IMREAD_COLOR), cv::NORM_INF), 0.0);
+  }
+}
+
 // A progressive JPEG of `color` with every AC coefficient in its own scan per component: 190
 // scans, or 380 when each is also sent in two successive-approximation passes (all valid JPEG).
 std::vector<uint8_t> ManyScanJpeg(const cv::Mat& color, bool refine) {
