@@ -48,12 +48,12 @@ __kernel void vd_sparse_mc_masks(__global const float* tsdf, __global const usho
   row_verts[i] = total;
 }
 
-/* Also records each vertex-owning point's first vertex index for the triangle pass. */
+/* The triangle pass finds each vertex again from the row offsets and the masks (vd_sparse_edge_vertex). */
 __kernel void vd_sparse_mc_vertices(__global const float* tsdf, __global const uint* color, __global const int* nbr,
                                     __global const uint* slot_keys, __global const uchar* masks,
                                     __global const uint* row_verts, __global const uint* row_vert_offset,
-                                    __global uint* vert_offset, __global float4* positions, __global float4* normals,
-                                    __global uint* colors, int vd_items) {
+                                    __global float4* positions, __global float4* normals, __global uint* colors,
+                                    int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items || row_verts[i] == 0u) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
@@ -63,7 +63,6 @@ __kernel void vd_sparse_mc_vertices(__global const float* tsdf, __global const u
   for (int x = 0; x < VD_BRICK; ++x) {
     uint m = masks[base + x];
     if (m == 0u) continue;
-    vert_offset[base + x] = out;
     for (int a = 0; a < 3; ++a) {
       if (!(m & (1u << a))) continue;
       float4 p, n;
@@ -79,7 +78,7 @@ __kernel void vd_sparse_mc_vertices(__global const float* tsdf, __global const u
 
 __kernel void vd_sparse_mc_triangles(__global const ushort* codes, __global const uint* row_tris,
                                      __global const uint* row_tri_offset, __global const char* tri_table,
-                                     __global const uchar* masks, __global const uint* vert_offset,
+                                     __global const uchar* masks, __global const uint* row_vert_offset,
                                      __global const int* nbr, __global int* tris, int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items || row_tris[i] == 0u) return;
@@ -92,7 +91,7 @@ __kernel void vd_sparse_mc_triangles(__global const ushort* codes, __global cons
     __global const char* row = tri_table + 16 * (code & 255u);
     for (int k = 0; row[k] >= 0; k += 3) {
       for (int c = 0; c < 3; ++c)
-        tris[3 * out + c] = vd_sparse_edge_vertex(masks, vert_offset, nbr, slot, x, y, z, row[k + c]);
+        tris[3 * out + c] = vd_sparse_edge_vertex(masks, row_vert_offset, nbr, slot, x, y, z, row[k + c]);
       ++out;
     }
   }

@@ -195,6 +195,9 @@ McMesh SparseMarchingCubes(const BrickTable& t, uint32_t used, const float* tsdf
   std::exclusive_scan(tri_count.begin(), tri_count.end(), tri_offset.begin(), 0u);
   const uint32_t nv = n ? vert_offset[n - 1] + vert_count[n - 1] : 0;
   const uint32_t nt = n ? tri_offset[n - 1] + tri_count[n - 1] : 0;
+  // Each row's first vertex (rows of VD_BRICK points), which the edge lookup counts on from.
+  std::vector<uint32_t> row_vert_offset(n / VD_BRICK);
+  for (size_t r = 0; r < row_vert_offset.size(); ++r) row_vert_offset[r] = vert_offset[r * VD_BRICK];
   McMesh mesh;
   mesh.positions_grid.resize(nv);
   mesh.normals.resize(nv);
@@ -221,7 +224,7 @@ McMesh SparseMarchingCubes(const BrickTable& t, uint32_t used, const float* tsdf
     const int8_t* row = &table.triangles[16 * (codes[i] & 255)];
     for (int k = 0; row[k] >= 0; ++k)
       mesh.triangles[3 * size_t(tri_offset[i]) + k] =
-          vd_sparse_edge_vertex(masks.data(), vert_offset.data(), nbr.data(), slot, x, y, z, row[k]);
+          vd_sparse_edge_vertex(masks.data(), row_vert_offset.data(), nbr.data(), slot, x, y, z, row[k]);
   }
   mesh.codes = std::move(codes);
   return mesh;

@@ -230,8 +230,10 @@ class DeviceOps {
                    const VdIcpParams& params, double acc[VD_ICP_ACC]);
 
  private:
-  // Marching cubes' scratch for `points` grid or pool points in `rows` rows of work.
-  Status ReserveMarchingCubes(size_t points, size_t rows);
+  // Marching cubes' scratch for `points` grid or pool points in `rows` rows of work; the per-point
+  // first vertex index only with vertex_offsets (the dense grid's long rows; the bricks' rows of 8
+  // count it from the masks).
+  Status ReserveMarchingCubes(size_t points, size_t rows, bool vertex_offsets);
   // After the classification and mask passes: the scans, the mesh's counts and buffers; whether it
   // has anything to emit.
   StatusOr<bool> SizeMesh(size_t rows, DeviceMesh* mesh);
@@ -247,7 +249,8 @@ class DeviceOps {
   // What IntegrateActive on the bricks passes for the touched flags it does not keep (never read).
   ocl::Buffer<uint8_t> no_touched_;
   ocl::Buffer<uint8_t> mc_tri_counts_;
-  // Marching-cubes scratch, one entry per grid point: cell codes, vertex masks, first vertex index.
+  // Marching-cubes scratch, one entry per grid point: cell codes, vertex masks, first vertex index
+  // (the dense grid only).
   ocl::Buffer<uint16_t> mc_codes_;
   ocl::Buffer<uint8_t> mc_masks_;
   ocl::Buffer<uint32_t> mc_vert_offset_;

@@ -5,10 +5,10 @@
 
 namespace vd {
 
-Status DeviceOps::ReserveMarchingCubes(size_t points, size_t rows) {
+Status DeviceOps::ReserveMarchingCubes(size_t points, size_t rows, bool vertex_offsets) {
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_codes_, points));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_masks_, points));
-  VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_vert_offset_, points));
+  if (vertex_offsets) VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_vert_offset_, points));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_tris_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_verts_, rows));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_row_tri_offset_, rows + 1));
@@ -31,7 +31,7 @@ StatusOr<bool> DeviceOps::SizeMesh(size_t rows, DeviceMesh* mesh) {
 
 Status DeviceOps::MarchingCubes(const DeviceVolume& v, DeviceMesh* mesh) {
   const size_t n = v.num_voxels(), rows = v.num_rows();
-  VD_RETURN_IF_ERROR(ReserveMarchingCubes(n, rows));
+  VD_RETURN_IF_ERROR(ReserveMarchingCubes(n, rows, /*vertex_offsets=*/true));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_chunk_tris_, rows * vd_mc_chunks_x(v.vol)));
   VD_RETURN_IF_ERROR(ocl::kMcClassify(*ctx_, rows, v.tsdf, v.weight, v.touched, v.vol, mc_tri_counts_, mc_codes_,
                                       mc_row_tris_, mc_chunk_tris_));

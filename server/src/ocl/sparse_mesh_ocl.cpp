@@ -20,7 +20,7 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
   if (used == 0) return Status::Ok();
   VD_RETURN_IF_ERROR(table.BuildNeighbours(*ctx_, counts.used));
   const ocl::Buffer<int32_t>& nbr = table.neighbours();
-  VD_RETURN_IF_ERROR(ReserveMarchingCubes(n, rows));
+  VD_RETURN_IF_ERROR(ReserveMarchingCubes(n, rows, /*vertex_offsets=*/false));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mc_brick_weighted_, used));
   VD_RETURN_IF_ERROR(ocl::kSparseMcWeighted(*ctx_, used, pool.weight, nbr, mc_brick_weighted_));
   VD_RETURN_IF_ERROR(ocl::kSparseMcClassify(*ctx_, rows, pool.tsdf, pool.weight, nbr, mc_brick_weighted_,
@@ -30,10 +30,10 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
   VD_ASSIGN_OR_RETURN(const bool any, SizeMesh(rows, mesh));
   if (!any) return Status::Ok();
   VD_RETURN_IF_ERROR(ocl::kSparseMcVertices(*ctx_, rows, pool.tsdf, pool.color, nbr, table.slot_keys(), mc_masks_,
-                                            mc_row_verts_, mc_row_vert_offset_, mc_vert_offset_, mesh->positions_grid,
-                                            mesh->normals, mesh->colors));
+                                            mc_row_verts_, mc_row_vert_offset_, mesh->positions_grid, mesh->normals,
+                                            mesh->colors));
   return ocl::kSparseMcTriangles(*ctx_, rows, mc_codes_, mc_row_tris_, mc_row_tri_offset_, mc_tri_table_, mc_masks_,
-                                 mc_vert_offset_, nbr, mesh->triangles);
+                                 mc_row_vert_offset_, nbr, mesh->triangles);
 }
 
 Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* out, DeviceActiveSet* solved,
