@@ -57,7 +57,10 @@ if ! cmp -s "$web/package-lock.json" "$web/node_modules/.vd-installed-lock" 2>/d
   cp "$web/package-lock.json" "$web/node_modules/.vd-installed-lock"
 fi
 
-# PoCL needs a writable kernel cache or it reports zero devices.
+# PoCL needs a writable kernel cache or it reports zero devices. The build and the tests use one in
+# the build folder; the caller's own setting (unset: PoCL's default, ~/.cache/pocl/kcache) is the
+# one a server started by hand uses, warmed below.
+runtime_pocl_cache=${POCL_CACHE_DIR-}
 export POCL_CACHE_DIR=${POCL_CACHE_DIR:-$build_dir/pocl-cache}
 mkdir -p "$POCL_CACHE_DIR"
 
@@ -67,3 +70,14 @@ if [ ! -f "$build_dir/CMakeCache.txt" ]; then
 fi
 jobs=$(nproc 2>/dev/null || echo 2)
 cmake --build "$build_dir" -j "$jobs"
+
+# PoCL compiles every kernel the first time a process on this account launches it: 10-15 s on a
+# 2-core machine, during which a server started by hand cannot listen (the program) and then drops
+# the stream's first seconds (each kernel's first launch). A dozen frames of the tube through the
+# server now, in the cache that server will use, moves that wait here (1-2 s once cached).
+if [ "$sanitize" = OFF ]; then
+  if ! (if [ -n "$runtime_pocl_cache" ]; then export POCL_CACHE_DIR=$runtime_pocl_cache; else unset POCL_CACHE_DIR; fi
+    "$build_dir/server/vdeform-server" --input synthetic:tube --count 12 --quiet >/dev/null 2>&1); then
+    echo "setup: warming the OpenCL kernel cache failed; the server's first start will compile the kernels" >&2
+  fi
+fi
