@@ -1,12 +1,13 @@
 #include "ocl/ocl.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cstdio>
-#include <cctype>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <iomanip>
 #include <set>
 #include <sstream>
 
@@ -316,6 +317,9 @@ std::string Context::Describe() const {
          device_.platform_name + ")";
 }
 
+// A program build slower than this compiled rather than came from a cache.
+constexpr double kSlowBuildSeconds = 3.0;
+
 Status Context::Build() {
   VD_ASSIGN_OR_RETURN(std::string source, AssembleProgramSource());
   const char* text = source.c_str();
@@ -330,7 +334,16 @@ Status Context::Build() {
   clGetDeviceInfo(device_.id, CL_DEVICE_SINGLE_FP_CONFIG, sizeof(fp), &fp, nullptr);
   // Same division and square root as the host reference where the device can.
   if (fp & CL_FP_CORRECTLY_ROUNDED_DIVIDE_SQRT) options += " -cl-fp32-correctly-rounded-divide-sqrt";
+  const auto build_start = std::chrono::steady_clock::now();
   err = clBuildProgram(program_, 1, &device_.id, options.c_str(), nullptr, nullptr);
+  const double build_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count();
+  // A cached build takes well under a second; one that compiled means the kernels will compile
+  // too, each at its first launch, and a live stream loses its first seconds meanwhile.
+  if (err == CL_SUCCESS && build_s > kSlowBuildSeconds)
+    VD_LOG_INFO << "OpenCL program compiled in " << std::fixed << std::setprecision(1) << build_s
+                << " s: the kernel cache (POCL_CACHE_DIR, else ~/.cache/pocl/kcache for PoCL) was cold; the "
+                   "first frames also compile their kernels (seconds); later starts are fast "
+                   "(deploy/setup.sh warms the cache)";
   if (err != CL_SUCCESS) {
     size_t n = 0;
     clGetProgramBuildInfo(program_, device_.id, CL_PROGRAM_BUILD_LOG, 0, nullptr, &n);
