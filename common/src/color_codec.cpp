@@ -149,10 +149,10 @@ StatusOr<cv::Mat> DecodeJpeg(const uint8_t* data, size_t size, int width, int he
   // and data cut short still meets the marker too early (a corrupting warning).
   std::vector<uint8_t> ended;
   if (data[size - 2] != 0xFF || data[size - 1] != 0xD9) {
-    ended.reserve(size + 2);
-    ended.assign(data, data + size);
-    ended.push_back(0xFF);
-    ended.push_back(0xD9);
+    ended.resize(size + 2);
+    std::copy(data, data + size, ended.begin());
+    ended[size] = 0xFF;
+    ended[size + 1] = 0xD9;
     data = ended.data();
     size = ended.size();
   }
@@ -196,7 +196,7 @@ void SinkInit(j_compress_ptr cinfo) { SinkGrow(reinterpret_cast<JpegSink*>(cinfo
 
 boolean SinkEmpty(j_compress_ptr cinfo) {
   auto* sink = reinterpret_cast<JpegSink*>(cinfo->dest);
-  // libjpeg calls this when the buffer is full (free_in_buffer is 0, whatever it says).
+  // libjpeg calls this when the whole buffer is full: everything in it is output so far.
   SinkGrow(sink, sink->capacity);
   return TRUE;
 }

@@ -143,21 +143,15 @@ VD_INLINE int vd_sparse_edge_vertex(VD_GLOBAL const vd_uchar* masks, VD_GLOBAL c
   int row_start = owner - (owner % VD_BRICK);
   /* The row's 8 masks as one word (a row starts at a multiple of 8 bytes); a mask holds only its 3
    * low bits, so the word's bit count below the owner's byte is the vertices before it. */
+  vd_ulong below_owner = (((vd_ulong)1) << (8 * (owner - row_start))) - 1; /* shift <= 56 */
 #ifdef __OPENCL_C_VERSION__
-  vd_ulong row = *(VD_GLOBAL const vd_ulong*)(masks + row_start);
+  int before = (int)popcount(*(VD_GLOBAL const vd_ulong*)(masks + row_start) & below_owner);
 #else
   vd_ulong row;
   memcpy(&row, masks + row_start, sizeof row);
+  int before = __builtin_popcountll(row & below_owner);
 #endif
-  int shift = 8 * (owner - row_start);
-  vd_ulong before = shift ? row & ((((vd_ulong)1) << shift) - 1) : 0;
-#ifdef __OPENCL_C_VERSION__
-  int index = (int)popcount(before);
-#else
-  int index = __builtin_popcountll(before);
-#endif
-  index += (int)row_vert_offset[owner / VD_BRICK];
-  return index + vd_popcount3((vd_uint)masks[owner] & ((1u << axis) - 1u));
+  return (int)row_vert_offset[owner / VD_BRICK] + before + vd_popcount3((vd_uint)masks[owner] & ((1u << axis) - 1u));
 }
 
 /* The active set M over the pool (shared/active_set.h's rules: the corners of cells with triangles
