@@ -32,13 +32,13 @@ __kernel void vd_sparse_mc_classify(__global const float* tsdf, __global const f
 }
 
 __kernel void vd_sparse_mc_masks(__global const float* tsdf, __global const ushort* codes, __global const int* nbr,
-                                 __global const uchar* weighted, __global uchar* masks, __global uint* row_verts,
-                                 int vd_items) {
+                                 __global const uchar* weighted, __global const uint* row_tris, __global uchar* masks,
+                                 __global uint* row_verts, int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
   int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
-  int present = weighted[slot];
+  int present = weighted[slot] && vd_sparse_row_may_own_vertices(row_tris, nbr, slot, y, z);
   uint total = 0u;
   for (int x = 0; x < VD_BRICK; ++x) {
     uint m = present ? vd_sparse_vertex_mask(tsdf, codes, nbr, slot, x, y, z) : 0u;
@@ -102,9 +102,11 @@ __kernel void vd_sparse_mc_triangles(__global const ushort* codes, __global cons
  * with triangles and the few surface points (vd_sparse_mark_*), then each row's members counted.
  * Slots without a brick mark nothing. */
 __kernel void vd_sparse_active_surface(__global const ushort* codes, __global const uchar* tri_counts,
-                                       __global const int* nbr, __global uchar* surface, int vd_items) {
+                                       __global const uint* row_tris, __global const int* nbr, __global uchar* surface,
+                                       int vd_items) {
   int i = get_global_id(0);
-  if (i >= vd_items) return;
+  /* A row of cells without triangles marks nothing. */
+  if (i >= vd_items || row_tris[i] == 0u) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
   if (nbr[VD_BRICK_NEIGHBOURS * slot + VD_BRICK_SELF] < 0) return;
   for (int x = 0; x < VD_BRICK; ++x) vd_sparse_mark_cell_corners(codes, tri_counts, nbr, slot, x, y, z, surface);

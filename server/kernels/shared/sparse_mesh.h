@@ -101,6 +101,28 @@ VD_INLINE vd_uint vd_sparse_vertex_mask(VD_GLOBAL const float* tsdf, VD_GLOBAL c
   return mask;
 }
 
+/* 0 when no point of row (y, z) of `slot` can own a vertex, from the triangle counts of the rows of
+ * cells (row_tris, one per row of 8 cells of a slot, as vd_sparse_mc_classify writes them): a vertex
+ * on an edge leaving point (x, y, z) borders only the cells with origins in [x-1, x] x [y-1, y] x
+ * [z-1, z], and it is there only where one of them is valid, and a valid cell whose corners change
+ * sign along an edge has triangles. So the rows (y-1..y, z-1..z) of this brick and of the brick
+ * across its -x face (whose last cell is the x - 1 of point 0) decide; rows below 0 are the
+ * neighbour bricks' last. Most rows of a brick hold no surface, and skipping them leaves the masks
+ * exactly as computed (zero). */
+VD_INLINE int vd_sparse_row_may_own_vertices(VD_GLOBAL const vd_uint* row_tris, VD_GLOBAL const int* nbr, int slot,
+                                             int y, int z) {
+  for (int dz = -1; dz <= 0; ++dz)
+    for (int dy = -1; dy <= 0; ++dy) {
+      int yy = y + dy, zz = z + dz, by = yy < 0 ? -1 : 0, bz = zz < 0 ? -1 : 0;
+      int row = (yy - VD_BRICK * by) + VD_BRICK * (zz - VD_BRICK * bz);
+      for (int bx = -1; bx <= 0; ++bx) {
+        int s = nbr[VD_BRICK_NEIGHBOURS * slot + vd_brick_neighbour_index(bx, by, bz)];
+        if (s >= 0 && row_tris[s * VD_BRICK_ROWS + row] != 0u) return 1;
+      }
+    }
+  return 0;
+}
+
 /* Central-difference gradient of the distance at local point (x, y, z) of `slot`. */
 VD_INLINE vd_float4 vd_sparse_gradient(VD_GLOBAL const float* tsdf, VD_GLOBAL const int* nbr, int slot, int x, int y,
                                        int z) {

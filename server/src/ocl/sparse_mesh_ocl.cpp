@@ -26,7 +26,8 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
   VD_RETURN_IF_ERROR(ocl::kSparseMcClassify(*ctx_, rows, pool.tsdf, pool.weight, nbr, mc_brick_weighted_,
                                             mc_tri_counts_, mc_codes_, mc_row_tris_));
   VD_RETURN_IF_ERROR(
-      ocl::kSparseMcMasks(*ctx_, rows, pool.tsdf, mc_codes_, nbr, mc_brick_weighted_, mc_masks_, mc_row_verts_));
+      ocl::kSparseMcMasks(*ctx_, rows, pool.tsdf, mc_codes_, nbr, mc_brick_weighted_, mc_row_tris_, mc_masks_,
+                          mc_row_verts_));
   VD_ASSIGN_OR_RETURN(const bool any, SizeMesh(rows, mesh));
   if (!any) return Status::Ok();
   VD_RETURN_IF_ERROR(ocl::kSparseMcVertices(*ctx_, rows, pool.tsdf, pool.color, nbr, table.slot_keys(), mc_masks_,
@@ -40,7 +41,8 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
                                  const SolveView* view, const ocl::Buffer<vd_float4>* def_pos) {
   VD_ASSIGN_OR_RETURN(const ocl::BrickCounts counts, table.Counts(*ctx_));
   const size_t n = size_t(counts.used) * VD_BRICK_VOXELS, rows = size_t(counts.used) * VD_BRICK_ROWS;
-  if (mc_codes_.size() < n || table.neighbours().size() < size_t(VD_BRICK_NEIGHBOURS) * counts.used)
+  if (mc_codes_.size() < n || mc_row_tris_.size() < rows ||
+      table.neighbours().size() < size_t(VD_BRICK_NEIGHBOURS) * counts.used)
     return FailedPrecondition("BuildActiveSet needs a MarchingCubes() run on these bricks");
   out->count = 0;
   out->kept = VdVolume{};
@@ -60,7 +62,7 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
   VD_RETURN_IF_ERROR(ctx_->Fill(active_surface_, uint8_t(0), n));
   VD_RETURN_IF_ERROR(ctx_->Fill(active_member_, uint8_t(0), n));
-  VD_RETURN_IF_ERROR(ocl::kSparseActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, nbr, active_surface_));
+  VD_RETURN_IF_ERROR(ocl::kSparseActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, nbr, active_surface_));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveDilate(*ctx_, rows, active_surface_, nbr, active_member_));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveRows(*ctx_, rows, active_member_, active_row_count_));
   VD_RETURN_IF_ERROR(SizeActiveSet(rows, active_row_count_, out));

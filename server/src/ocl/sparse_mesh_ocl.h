@@ -16,7 +16,8 @@ inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<float>& wei
                              Buffer<uint16_t>& codes, Buffer<uint32_t>& row_tris)>
     kSparseMcClassify{"vd_sparse_mc_classify"};
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint16_t>& codes, const Buffer<int32_t>& nbr,
-                             const Buffer<uint8_t>& weighted, Buffer<uint8_t>& masks, Buffer<uint32_t>& row_verts)>
+                             const Buffer<uint8_t>& weighted, const Buffer<uint32_t>& row_tris, Buffer<uint8_t>& masks,
+                             Buffer<uint32_t>& row_verts)>
     kSparseMcMasks{"vd_sparse_mc_masks"};
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint32_t>& color, const Buffer<int32_t>& nbr,
                              const Buffer<uint32_t>& slot_keys, const Buffer<uint8_t>& masks,
@@ -31,7 +32,7 @@ inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint32_
 
 // The active set over the pool: one item per row of 8 points of a slot, then one per member.
 inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint8_t>& tri_counts,
-                             const Buffer<int32_t>& nbr, Buffer<uint8_t>& surface)>
+                             const Buffer<uint32_t>& row_tris, const Buffer<int32_t>& nbr, Buffer<uint8_t>& surface)>
     kSparseActiveSurface{"vd_sparse_active_surface"};
 inline constexpr Kernel<void(const Buffer<uint8_t>& surface, const Buffer<int32_t>& nbr, Buffer<uint8_t>& member)>
     kSparseActiveDilate{"vd_sparse_active_dilate"};
