@@ -25,11 +25,7 @@ __kernel void vd_mc_classify(__global const float* tsdf, __global const float* w
     if (!touched[brick_row + x0 / VD_BRICK]) {
       for (int x = x0; x < x1; ++x) codes[yz * vol.dim_x + x] = (ushort)0;
     } else {
-      for (int x = x0; x < x1; ++x) {
-        uint code = vd_mc_cell_code(tsdf, weight, vol, x, y, z);
-        codes[yz * vol.dim_x + x] = (ushort)code;
-        chunk += (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
-      }
+      chunk = vd_mc_classify_run(tsdf, weight, vol, x0, x1, y, z, tri_counts, codes, yz * vol.dim_x);
     }
     chunk_tris[yz * vd_mc_chunks_x(vol) + x0 / VD_MC_CHUNK] = chunk > 0u ? (uchar)1 : (uchar)0;
     total += chunk;

@@ -20,15 +20,13 @@ __kernel void vd_sparse_mc_classify(__global const float* tsdf, __global const f
   int i = get_global_id(0);
   if (i >= vd_items) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
-  uint total = 0u;
-  int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
-  int present = weighted[slot];
-  for (int x = 0; x < VD_BRICK; ++x) {
-    uint code = present ? vd_sparse_cell_code(tsdf, weight, nbr, slot, x, y, z) : 0u;
-    codes[base + x] = (ushort)code;
-    total += (code & VD_MC_VALID) ? (uint)tri_counts[code & 255u] : 0u;
+  if (!weighted[slot]) {
+    int base = slot * VD_BRICK_VOXELS + (i % VD_BRICK_ROWS) * VD_BRICK;
+    for (int x = 0; x < VD_BRICK; ++x) codes[base + x] = (ushort)0;
+    row_tris[i] = 0u;
+    return;
   }
-  row_tris[i] = total;
+  row_tris[i] = vd_sparse_classify_row(tsdf, weight, nbr, slot, y, z, tri_counts, codes);
 }
 
 __kernel void vd_sparse_mc_masks(__global const float* tsdf, __global const ushort* codes, __global const int* nbr,

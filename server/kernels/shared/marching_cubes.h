@@ -38,6 +38,44 @@ VD_INLINE vd_uint vd_mc_cell_code(VD_GLOBAL const float* tsdf, VD_GLOBAL const f
   return vd_mc_code_from(d, w);
 }
 
+/* vd_mc_cell_code for the cells x0 .. x1 - 1 of row (y, z), written to codes[row_base + x]; returns
+ * their triangles (tri_counts). Neighbouring cells share a face: each x column's four distances and
+ * weights are read once and kept for the cell after it, half the reads of cell by cell. */
+VD_INLINE vd_uint vd_mc_classify_run(VD_GLOBAL const float* tsdf, VD_GLOBAL const float* weight, VdVolume vol, int x0,
+                                     int x1, int y, int z, VD_GLOBAL const vd_uchar* tri_counts,
+                                     VD_GLOBAL vd_ushort* codes, int row_base) {
+  vd_uint total = 0u;
+  if (y >= vol.dim_y - 1 || z >= vol.dim_z - 1) {
+    for (int x = x0; x < x1; ++x) codes[row_base + x] = (vd_ushort)0;
+    return 0u;
+  }
+  /* Column x's corners r = dy + 2 dz (corner i of the cell: x offset i & 1, r = i >> 1). */
+  int col[4];
+  for (int r = 0; r < 4; ++r) col[r] = vd_grid_index(vol, 0, y + (r & 1), z + (r >> 1));
+  float d0[4], w0[4];
+  for (int r = 0; r < 4; ++r) {
+    d0[r] = tsdf[col[r] + x0];
+    w0[r] = weight[col[r] + x0];
+  }
+  for (int x = x0; x < x1; ++x) {
+    if (x >= vol.dim_x - 1) {
+      codes[row_base + x] = (vd_ushort)0;
+      continue;
+    }
+    float d[8], w[8];
+    for (int r = 0; r < 4; ++r) {
+      d[2 * r] = d0[r];
+      w[2 * r] = w0[r];
+      d0[r] = d[2 * r + 1] = tsdf[col[r] + x + 1];
+      w0[r] = w[2 * r + 1] = weight[col[r] + x + 1];
+    }
+    vd_uint code = vd_mc_code_from(d, w);
+    codes[row_base + x] = (vd_ushort)code;
+    total += (code & VD_MC_VALID) ? (vd_uint)tri_counts[code & 255u] : 0u;
+  }
+  return total;
+}
+
 /* Offsets from a grid point of the k-th (0..3) of the four cells sharing its edge along axis a:
  * -1 or 0 along each of the two other axes. */
 VD_INLINE void vd_mc_edge_cell(int a, int k, int* ox, int* oy, int* oz) {

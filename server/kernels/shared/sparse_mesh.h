@@ -80,6 +80,42 @@ VD_INLINE vd_uint vd_sparse_cell_code(VD_GLOBAL const float* tsdf, VD_GLOBAL con
   return vd_mc_code_from(d, w);
 }
 
+/* vd_sparse_cell_code for the 8 cells of row (y, z) of `slot`, written to codes[slot's row]; returns
+ * their triangles (tri_counts). The cells' corners are 4 rows of 9 points (the row, the row above
+ * it, and both one layer up; the 9th point in the brick across the +x face): each is read once
+ * instead of once per cell that shares it, and each row's brick is resolved once. */
+VD_INLINE vd_uint vd_sparse_classify_row(VD_GLOBAL const float* tsdf, VD_GLOBAL const float* weight,
+                                         VD_GLOBAL const int* nbr, int slot, int y, int z,
+                                         VD_GLOBAL const vd_uchar* tri_counts, VD_GLOBAL vd_ushort* codes) {
+  /* Corner row r = dy + 2 dz: distances and weights at x = 0..8 (unallocated: 1 and 0). */
+  float d[4][VD_BRICK + 1], w[4][VD_BRICK + 1];
+  for (int r = 0; r < 4; ++r) {
+    int yy = y + (r & 1), zz = z + (r >> 1), by = yy >= VD_BRICK, bz = zz >= VD_BRICK;
+    int row = (yy - VD_BRICK * by) * VD_BRICK + (zz - VD_BRICK * bz) * VD_BRICK_ROWS;
+    int s = (by | bz) ? nbr[VD_BRICK_NEIGHBOURS * slot + vd_brick_neighbour_index(0, by, bz)] : slot;
+    for (int x = 0; x < VD_BRICK; ++x) {
+      d[r][x] = s < 0 ? 1.0f : tsdf[s * VD_BRICK_VOXELS + row + x];
+      w[r][x] = s < 0 ? 0.0f : weight[s * VD_BRICK_VOXELS + row + x];
+    }
+    int s8 = nbr[VD_BRICK_NEIGHBOURS * slot + vd_brick_neighbour_index(1, by, bz)];
+    d[r][VD_BRICK] = s8 < 0 ? 1.0f : tsdf[s8 * VD_BRICK_VOXELS + row];
+    w[r][VD_BRICK] = s8 < 0 ? 0.0f : weight[s8 * VD_BRICK_VOXELS + row];
+  }
+  int base = slot * VD_BRICK_VOXELS + y * VD_BRICK + z * VD_BRICK_ROWS;
+  vd_uint total = 0u;
+  for (int x = 0; x < VD_BRICK; ++x) {
+    float cd[8], cw[8];
+    for (int i = 0; i < 8; ++i) {
+      cd[i] = d[i >> 1][x + (i & 1)];
+      cw[i] = w[i >> 1][x + (i & 1)];
+    }
+    vd_uint code = vd_mc_code_from(cd, cw);
+    codes[base + x] = (vd_ushort)code;
+    total += (code & VD_MC_VALID) ? (vd_uint)tri_counts[code & 255u] : 0u;
+  }
+  return total;
+}
+
 /* Vertex mask (bit a: a vertex on the edge along +a) of local point (x, y, z) of `slot`, from the
  * cell codes of every allocated brick (codes: one per pool voxel). */
 VD_INLINE vd_uint vd_sparse_vertex_mask(VD_GLOBAL const float* tsdf, VD_GLOBAL const vd_ushort* codes,
