@@ -44,10 +44,12 @@ VD_INLINE void vd_brick_neighbours_of(int slot, VD_GLOBAL const vd_uint* slot_ke
 VD_INLINE int vd_brick_step(int c) { return c < 0 ? -1 : (c >= VD_BRICK ? 1 : 0); }
 
 /* Pool index of the voxel at local coordinates (x, y, z) of the brick in `slot`, each -8..15 (so
- * in that brick or one of its 26 neighbours), or -1 when its brick is not allocated. */
+ * in that brick or one of its 26 neighbours), or -1 when its brick is not allocated. `slot` holds a
+ * brick (every caller takes it from a member, a listed brick or the table), so a voxel of the brick
+ * itself, most of them, needs no table read. */
 VD_INLINE int vd_brick_voxel_at(VD_GLOBAL const int* nbr, int slot, int x, int y, int z) {
   int dx = vd_brick_step(x), dy = vd_brick_step(y), dz = vd_brick_step(z);
-  int s = nbr[VD_BRICK_NEIGHBOURS * slot + vd_brick_neighbour_index(dx, dy, dz)];
+  int s = (dx | dy | dz) == 0 ? slot : nbr[VD_BRICK_NEIGHBOURS * slot + vd_brick_neighbour_index(dx, dy, dz)];
   if (s < 0) return -1;
   return s * VD_BRICK_VOXELS + (x - VD_BRICK * dx) + VD_BRICK * (y - VD_BRICK * dy) +
          VD_BRICK_ROWS * (z - VD_BRICK * dz);
