@@ -51,7 +51,7 @@ __kernel void vd_sparse_mc_vertices(__global const float* tsdf, __global const u
                                     __global const uint* slot_keys, __global const uchar* masks,
                                     __global const uint* row_verts, __global const uint* row_vert_offset,
                                     __global float4* positions, __global float4* normals, __global uint* colors,
-                                    int vd_items) {
+                                    __global int* owners, int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items || row_verts[i] == 0u) return;
   int slot = i / VD_BRICK_ROWS, y = i % VD_BRICK, z = (i / VD_BRICK) % VD_BRICK;
@@ -69,6 +69,7 @@ __kernel void vd_sparse_mc_vertices(__global const float* tsdf, __global const u
       positions[out] = p;
       normals[out] = n;
       colors[out] = c;
+      owners[out] = slot;
       ++out;
     }
   }

@@ -336,6 +336,34 @@ TEST_F(SparseMeshParityTest, FieldExtrapolationAndDeformedMeshMatchTheCpuAndTheD
                                       f.vol.voxel_size);
   EXPECT_TRUE(test::AllClose(test::Flatten(live), test::Flatten(clive), 1e-6f, 0.f));
 
+  // Marching cubes gave each vertex the slot of its owning point's brick: the brick the vertex's
+  // edge starts in (the vertex lies within a voxel of it along the edge), which the deformation
+  // above reached its cell through.
+  ASSERT_EQ(mesh.num_brick_slots, nv);
+  const std::vector<int32_t> owners = test::FromDevice(ctx, mesh.brick_slots, nv);
+  size_t owned = 0;
+  for (size_t i = 0; i < nv; ++i) {
+    ASSERT_GE(owners[i], 0);
+    ASSERT_LT(uint32_t(owners[i]), f.counts.used);
+    int bx, by, bz;
+    vd_brick_unpack(ref.slot_keys[owners[i]], &bx, &by, &bz);
+    const float l[3] = {grid[i].x - VD_BRICK * bx, grid[i].y - VD_BRICK * by, grid[i].z - VD_BRICK * bz};
+    owned += l[0] >= 0.f && l[1] >= 0.f && l[2] >= 0.f && l[0] <= VD_BRICK && l[1] <= VD_BRICK && l[2] <= VD_BRICK;
+  }
+  EXPECT_EQ(owned, nv);
+  // Owners that no longer name the vertex's brick (bricks dropped or moved since the mesh was made):
+  // every vertex given the slot of the first vertex's brick, which most of them are far from, and
+  // then a slot without a brick. The deformation falls back to the table and gives the same values.
+  for (int32_t stale : {owners[0], int32_t(f.counts.used)}) {
+    ASSERT_LT(uint32_t(stale), f.pool->slots);
+    const std::vector<int32_t> all(nv, stale);
+    ASSERT_TRUE(ctx->Upload(mesh.brick_slots, all.data(), nv).ok());
+    ASSERT_TRUE(ops.DeformVertices(*f.table, *f.pool, f.vol.voxel_size, &mesh).ok());
+    EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, mesh.positions, nv)), test::Flatten(clive), 1e-6f,
+                               0.f))
+        << "owner slot " << stale;
+  }
+
   // The dense grid's field with the same values (at rest elsewhere), extrapolated and deforming the
   // same vertices (in its grid units).
   std::vector<float> dt, dw;

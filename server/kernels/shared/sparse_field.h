@@ -92,15 +92,11 @@ VD_INLINE vd_float4 vd_sparse_corner(int slot, int lx, int ly, int lz, int cx, i
              : VD_F4(voxel_size * (float)(cx + ox), voxel_size * (float)(cy + oy), voxel_size * (float)(cz + oz), 0.0f);
 }
 
-/* S(x) for a point in global grid coordinates g (as marching cubes over the bricks emits vertices):
- * the trilinear blend of its cell's 8 corners' t_i (vd_sparse_corner). w = 1. */
-VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
-                                           vd_uint capacity, VD_GLOBAL const int* nbr,
-                                           VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
-  int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
-  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
-  int lx, ly, lz;
-  int slot = vd_brick_locate(cx, cy, cz, keys, slots, capacity, &lx, &ly, &lz);
+/* The trilinear blend of the 8 corners' t_i (vd_sparse_corner) of the cell with first corner
+ * (cx, cy, cz) at fractions (fx, fy, fz), that corner being local point (lx, ly, lz) of `slot`. w = 1. */
+VD_INLINE vd_float4 vd_sparse_blend_cell(int slot, int lx, int ly, int lz, int cx, int cy, int cz, float fx, float fy,
+                                         float fz, VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
+                                         float voxel_size) {
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int k = 0; k < 8; ++k) {
     int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
@@ -109,6 +105,43 @@ VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint*
   }
   acc.w = 1.0f;
   return acc;
+}
+
+/* S(x) for a point in global grid coordinates g (as marching cubes over the bricks emits vertices):
+ * the trilinear blend of its cell's 8 corners' t_i, the cell's brick found in the table. w = 1. */
+VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
+                                           vd_uint capacity, VD_GLOBAL const int* nbr,
+                                           VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
+  int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
+  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
+  int lx, ly, lz;
+  int slot = vd_brick_locate(cx, cy, cz, keys, slots, capacity, &lx, &ly, &lz);
+  return vd_sparse_blend_cell(slot, lx, ly, lz, cx, cy, cz, fx, fy, fz, nbr, def_pos, voxel_size);
+}
+
+/* The same for a vertex of the mesh over the bricks, whose owning point lies in the brick in slot
+ * `owner` (vd_sparse_mc_vertices): the vertex lies on that point's edge, so its cell starts at the
+ * point or the next one along the edge, in that brick or the one across its face, which the
+ * neighbour table reaches without probing the brick table: the same corners, so the same value.
+ * Where the slot no longer holds a brick next to the cell (bricks dropped or moved since the mesh
+ * was made), the cell's brick is looked up as vd_sparse_deform_point does. */
+VD_INLINE vd_float4 vd_sparse_deform_vertex(vd_float4 g, int owner, VD_GLOBAL const vd_uint* slot_keys,
+                                            VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
+                                            vd_uint capacity, VD_GLOBAL const int* nbr,
+                                            VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
+  int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
+  float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
+  vd_uint key = slot_keys[owner];
+  if (key != VD_BRICK_EMPTY) {
+    int bx, by, bz;
+    vd_brick_unpack(key, &bx, &by, &bz);
+    int lx = cx - VD_BRICK * bx, ly = cy - VD_BRICK * by, lz = cz - VD_BRICK * bz;
+    /* The cell's corners (l .. l + 1) within the brick and the ones next to it. */
+    if (lx >= -VD_BRICK && ly >= -VD_BRICK && lz >= -VD_BRICK && lx < VD_BRICK + VD_BRICK - 1 &&
+        ly < VD_BRICK + VD_BRICK - 1 && lz < VD_BRICK + VD_BRICK - 1)
+      return vd_sparse_blend_cell(owner, lx, ly, lz, cx, cy, cz, fx, fy, fz, nbr, def_pos, voxel_size);
+  }
+  return vd_sparse_deform_point(g, keys, slots, capacity, nbr, def_pos, voxel_size);
 }
 
 /* A deformation field as the feature kernels read it: a dense grid's (keys null: t_i at grid index,

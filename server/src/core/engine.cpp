@@ -527,7 +527,7 @@ void Engine::Reset() {
   extractor_.Clear();
   matches_.clear();
   pose_ = model_pose_ = Eigen::Matrix4d::Identity();
-  mesh_.num_vertices = mesh_.num_triangles = 0;
+  mesh_.num_vertices = mesh_.num_triangles = mesh_.num_brick_slots = 0;
   tracked_.num_vertices = tracked_.num_triangles = 0;
   tracked_canonical_ = TriangleMesh();
 }

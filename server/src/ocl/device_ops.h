@@ -48,8 +48,13 @@ struct DeviceMesh {
   ocl::Buffer<vd_float4> normals;
   ocl::Buffer<uint32_t> colors;
   ocl::Buffer<int32_t> triangles;
+  // Marching cubes over the bricks: the pool slot of each vertex's owning grid point, so that
+  // deforming it reaches its cell through the neighbour table instead of probing the brick table.
+  // Valid for the first num_brick_slots vertices (0 for any other mesh).
+  ocl::Buffer<int32_t> brick_slots;
   size_t num_vertices = 0;
   size_t num_triangles = 0;
+  size_t num_brick_slots = 0;
 };
 
 struct DeviceRaster {

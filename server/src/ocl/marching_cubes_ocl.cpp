@@ -21,6 +21,7 @@ StatusOr<bool> DeviceOps::SizeMesh(size_t rows, DeviceMesh* mesh) {
   VD_RETURN_IF_ERROR(ScanExclusive(mc_row_verts_, rows, mc_row_vert_offset_, &nv));
   mesh->num_vertices = nv;
   mesh->num_triangles = nt;
+  mesh->num_brick_slots = 0;
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->positions_grid, nv));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->positions, nv));
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->normals, nv));

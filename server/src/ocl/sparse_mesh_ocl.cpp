@@ -16,7 +16,7 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
     return InvalidArgument("the brick pool holds " + std::to_string(pool.slots) + " bricks; the table has handed out " +
                            std::to_string(counts.used));
   const size_t used = counts.used, n = used * VD_BRICK_VOXELS, rows = used * VD_BRICK_ROWS;
-  mesh->num_vertices = mesh->num_triangles = 0;
+  mesh->num_vertices = mesh->num_triangles = mesh->num_brick_slots = 0;
   if (used == 0) return Status::Ok();
   VD_RETURN_IF_ERROR(table.BuildNeighbours(*ctx_, counts.used));
   const ocl::Buffer<int32_t>& nbr = table.neighbours();
@@ -30,9 +30,11 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
                           mc_row_verts_));
   VD_ASSIGN_OR_RETURN(const bool any, SizeMesh(rows, mesh));
   if (!any) return Status::Ok();
+  VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->brick_slots, mesh->num_vertices));
   VD_RETURN_IF_ERROR(ocl::kSparseMcVertices(*ctx_, rows, pool.tsdf, pool.color, nbr, table.slot_keys(), mc_masks_,
                                             mc_row_verts_, mc_row_vert_offset_, mesh->positions_grid, mesh->normals,
-                                            mesh->colors));
+                                            mesh->colors, mesh->brick_slots));
+  mesh->num_brick_slots = mesh->num_vertices;
   return ocl::kSparseMcTriangles(*ctx_, rows, mc_codes_, mc_row_tris_, mc_row_tri_offset_, mc_tri_table_, mc_masks_,
                                  mc_row_vert_offset_, nbr, mesh->triangles);
 }
@@ -116,6 +118,10 @@ Status DeviceOps::DeformVertices(const ocl::BrickTable& table, const ocl::BrickP
                                  DeviceMesh* mesh) {
   if (!pool.with_field) return FailedPrecondition("DeformVertices needs a brick pool with a deformation field");
   if (mesh->num_vertices == 0) return Status::Ok();
+  if (mesh->num_brick_slots == mesh->num_vertices)
+    return ocl::kSparseDeformMeshVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, mesh->brick_slots,
+                                          table.slot_keys(), table.keys(), table.slots(), table.capacity(),
+                                          table.neighbours(), pool.def_pos, voxel_size, mesh->positions);
   return ocl::kSparseDeformVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, table.keys(), table.slots(),
                                     table.capacity(), table.neighbours(), pool.def_pos, voxel_size, mesh->positions);
 }

@@ -22,7 +22,8 @@ inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint16_t>& 
 inline constexpr Kernel<void(const Buffer<float>& tsdf, const Buffer<uint32_t>& color, const Buffer<int32_t>& nbr,
                              const Buffer<uint32_t>& slot_keys, const Buffer<uint8_t>& masks,
                              const Buffer<uint32_t>& row_verts, const Buffer<uint32_t>& row_vert_offset,
-                             Buffer<vd_float4>& positions, Buffer<vd_float4>& normals, Buffer<uint32_t>& colors)>
+                             Buffer<vd_float4>& positions, Buffer<vd_float4>& normals, Buffer<uint32_t>& colors,
+                             Buffer<int32_t>& owners)>
     kSparseMcVertices{"vd_sparse_mc_vertices"};
 inline constexpr Kernel<void(const Buffer<uint16_t>& codes, const Buffer<uint32_t>& row_tris,
                              const Buffer<uint32_t>& row_tri_offset, const Buffer<int8_t>& tri_table,
