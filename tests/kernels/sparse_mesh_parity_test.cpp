@@ -359,8 +359,8 @@ TEST_F(SparseMeshParityTest, FieldExtrapolationAndDeformedMeshMatchTheCpuAndTheD
     const std::vector<int32_t> all(nv, stale);
     ASSERT_TRUE(ctx->Upload(mesh.brick_slots, all.data(), nv).ok());
     ASSERT_TRUE(ops.DeformVertices(*f.table, *f.pool, f.vol.voxel_size, &mesh).ok());
-    EXPECT_TRUE(test::AllClose(test::Flatten(test::FromDevice(ctx, mesh.positions, nv)), test::Flatten(clive), 1e-6f,
-                               0.f))
+    EXPECT_TRUE(
+        test::AllClose(test::Flatten(test::FromDevice(ctx, mesh.positions, nv)), test::Flatten(clive), 1e-6f, 0.f))
         << "owner slot " << stale;
   }
 

@@ -126,9 +126,9 @@ VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint*
  * Where the slot no longer holds a brick next to the cell (bricks dropped or moved since the mesh
  * was made), the cell's brick is looked up as vd_sparse_deform_point does. */
 VD_INLINE vd_float4 vd_sparse_deform_vertex(vd_float4 g, int owner, VD_GLOBAL const vd_uint* slot_keys,
-                                            VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
-                                            vd_uint capacity, VD_GLOBAL const int* nbr,
-                                            VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
+                                            VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity,
+                                            VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
+                                            float voxel_size) {
   int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
   float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
   vd_uint key = slot_keys[owner];

@@ -25,9 +25,8 @@ Status DeviceOps::MarchingCubes(ocl::BrickTable& table, const ocl::BrickPool& po
   VD_RETURN_IF_ERROR(ocl::kSparseMcWeighted(*ctx_, used, pool.weight, nbr, mc_brick_weighted_));
   VD_RETURN_IF_ERROR(ocl::kSparseMcClassify(*ctx_, rows, pool.tsdf, pool.weight, nbr, mc_brick_weighted_,
                                             mc_tri_counts_, mc_codes_, mc_row_tris_));
-  VD_RETURN_IF_ERROR(
-      ocl::kSparseMcMasks(*ctx_, rows, pool.tsdf, mc_codes_, nbr, mc_brick_weighted_, mc_row_tris_, mc_masks_,
-                          mc_row_verts_));
+  VD_RETURN_IF_ERROR(ocl::kSparseMcMasks(*ctx_, rows, pool.tsdf, mc_codes_, nbr, mc_brick_weighted_, mc_row_tris_,
+                                         mc_masks_, mc_row_verts_));
   VD_ASSIGN_OR_RETURN(const bool any, SizeMesh(rows, mesh));
   if (!any) return Status::Ok();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&mesh->brick_slots, mesh->num_vertices));
@@ -64,7 +63,8 @@ Status DeviceOps::BuildActiveSet(const ocl::BrickTable& table, DeviceActiveSet* 
   VD_RETURN_IF_ERROR(ctx_->Reserve(&out->compact, n));
   VD_RETURN_IF_ERROR(ctx_->Fill(active_surface_, uint8_t(0), n));
   VD_RETURN_IF_ERROR(ctx_->Fill(active_member_, uint8_t(0), n));
-  VD_RETURN_IF_ERROR(ocl::kSparseActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, nbr, active_surface_));
+  VD_RETURN_IF_ERROR(
+      ocl::kSparseActiveSurface(*ctx_, rows, mc_codes_, mc_tri_counts_, mc_row_tris_, nbr, active_surface_));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveDilate(*ctx_, rows, active_surface_, nbr, active_member_));
   VD_RETURN_IF_ERROR(ocl::kSparseActiveRows(*ctx_, rows, active_member_, active_row_count_));
   VD_RETURN_IF_ERROR(SizeActiveSet(rows, active_row_count_, out));
