@@ -247,24 +247,25 @@ __kernel void vd_sparse_deform_vertices(__global const float4* grid_pos, __globa
 
 /* One work item per vertex of the mesh over the bricks, with its owning point's slot. */
 __kernel void vd_sparse_deform_mesh_vertices(__global const float4* grid_pos, __global const int* owner,
-                                             __global const uint* slot_keys, __global const uint* keys,
+                                             int num_slots, __global const uint* slot_keys, __global const uint* keys,
                                              __global const int* slots, uint capacity, __global const int* nbr,
                                              __global const float4* def_pos, float voxel_size, __global float4* out,
                                              int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  out[i] = vd_sparse_deform_vertex(grid_pos[i], owner[i], slot_keys, keys, slots, capacity, nbr, def_pos, voxel_size);
+  out[i] = vd_sparse_deform_vertex(grid_pos[i], owner[i], num_slots, slot_keys, keys, slots, capacity, nbr, def_pos, voxel_size);
 }
 
 /* One work item per per-pixel constraint: the compact index of its cell's first corner on the
- * bricks (-1: unusable), counted per cell (vd_constraint_count's twin). */
-__kernel void vd_sparse_constraint_count(__global const VdCorrespondence* corr, __global const uint* keys,
+ * bricks (-1: unusable), counted per cell (vd_constraint_count's twin); num_slots: the pool's. */
+__kernel void vd_sparse_constraint_count(__global const VdCorrespondence* corr, int num_slots,
+                                         __global const uint* slot_keys, __global const uint* keys,
                                          __global const int* slots, uint capacity, __global const int* nbr,
                                          __global const int* compact, __global int* cell_of, __global uint* counts,
                                          int vd_items) {
   int i = get_global_id(0);
   if (i >= vd_items) return;
-  int kc = vd_sparse_constraint_cell(corr[i], keys, slots, capacity, nbr, compact);
+  int kc = vd_sparse_constraint_cell(corr[i], num_slots, slot_keys, keys, slots, capacity, nbr, compact);
   cell_of[i] = kc;
   if (kc >= 0) atomic_inc(&counts[kc]);
 }

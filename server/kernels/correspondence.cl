@@ -3,10 +3,10 @@
 __kernel void vd_correspondences(__global const float4* model_v, __global const float4* model_n,
                                  __global const uint* ids, __global const float4* bary, __global const float4* obs_v,
                                  __global const float4* obs_n, __global const float4* canon, __global const int* tris,
-                                 VdCorrParams prm, __global VdCorrespondence* out, int vd_items) {
+                                 __global const int* owners, VdCorrParams prm, __global VdCorrespondence* out, int vd_items) {
   if ((int)get_global_id(0) >= vd_items) return;
   int i = get_global_id(0);
-  out[i] = vd_correspondence_pixel(i, model_v, model_n, ids, bary, obs_v, obs_n, canon, tris, prm);
+  out[i] = vd_correspondence_pixel(i, model_v, model_n, ids, bary, obs_v, obs_n, canon, tris, owners, prm);
 }
 
 /* The colour rows after the image's depth rows: out[vd_items + i] from out[i]. */

@@ -240,7 +240,7 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
     std::vector<float> f;
     for (const auto& c : v)
       f.insert(f.end(), {c.canonical.x, c.canonical.y, c.canonical.z, c.canonical.w, c.target.x, c.target.y, c.target.z,
-                         c.normal.x, c.normal.y, c.normal.z});
+                         c.target.w, c.normal.x, c.normal.y, c.normal.z});
     return f;
   };
   EXPECT_TRUE(test::AllClose(flatten(dev), flatten(ref), 1e-5f, 1e-5f));
@@ -275,6 +275,30 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
   EXPECT_TRUE(test::AllClose(flatten(test::FromDevice(ctx, *drows, 2 * size_t(n))), flatten(rows), 1e-5f, 1e-5f));
   // A buffer without room for the colour rows is refused, not overrun.
   EXPECT_FALSE(ops.PhotometricCorrespondences(dr, dov, dm, *dint, pp, *out).ok());
+
+  // A mesh without owning bricks gives no hints; a mesh over the bricks (DeviceMesh::brick_slots)
+  // gives each row its triangle's first vertex's owner, and each colour row its depth row's.
+  for (const VdCorrespondence& c : rows) ASSERT_EQ(c.target.w, -1.f);
+  std::vector<int32_t> owners(mc.positions_grid.size());
+  for (size_t v = 0; v < owners.size(); ++v) owners[v] = int32_t((v * 7) % 1009);
+  dm.brick_slots = test::ToDevice(ctx, owners);
+  dm.num_brick_slots = owners.size();
+  std::vector<VdCorrespondence> hinted(2 * size_t(n));
+  cpu::Correspondences(model, ov.data(), on.data(), mc.positions_grid.data(), mc.triangles.data(), prm, n,
+                       hinted.data(), owners.data());
+  cpu::PhotometricCorrespondences(model, ov.data(), mc.colors.data(), mc.triangles.data(), intensity.data(), pp,
+                                  hinted.data());
+  int checked = 0;
+  for (int k = 0; k < n; ++k) {
+    if (!(hinted[k].canonical.w > 0.f)) continue;
+    ASSERT_EQ(hinted[k].target.w, float(owners[mc.triangles[3 * model.ids[k]]])) << k;
+    if (hinted[n + k].canonical.w > 0.f) ASSERT_EQ(hinted[n + k].target.w, hinted[k].target.w) << k;
+    ++checked;
+  }
+  EXPECT_EQ(checked, valid);
+  ASSERT_TRUE(ops.Correspondences(dr, dov, don, dm, prm, *drows).ok());
+  ASSERT_TRUE(ops.PhotometricCorrespondences(dr, dov, dm, *dint, pp, *drows).ok());
+  EXPECT_TRUE(test::AllClose(flatten(test::FromDevice(ctx, *drows, 2 * size_t(n))), flatten(hinted), 1e-5f, 1e-5f));
 }
 
 }  // namespace

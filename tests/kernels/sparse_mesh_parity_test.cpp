@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <limits>
 #include <optional>
 #include <set>
 
@@ -571,21 +572,31 @@ TEST_F(SparseMeshParityTest, ConstraintCellsMatchTheCpuAndTheDenseGrid) {
     c.canonical = VD_F4(3000.f + k, -2000.f, 500.f, 1.f);
     corr.push_back(c);
   }
-  ocl::Buffer<VdCorrespondence> dcorr = test::ToDevice(ctx, corr);
   auto cell_of = ctx->Alloc<int32_t>(corr.size());
   auto counts = ctx->Alloc<uint32_t>(m + 1);
   ASSERT_TRUE(cell_of.ok() && counts.ok());
-  ASSERT_TRUE(ctx->Fill(*counts, 0u, m + 1).ok());
-  ASSERT_TRUE(ocl::CountConstraints(*ctx, corr.size(), dcorr, *f_.table, active.compact, *cell_of, *counts).ok());
-  const std::vector<int32_t> cells = test::FromDevice(ctx, *cell_of, corr.size());
-  const std::vector<uint32_t> per_cell = test::FromDevice(ctx, *counts, m);
+  auto count_on_device = [&](const std::vector<VdCorrespondence>& c, std::vector<int32_t>* cells,
+                             std::vector<uint32_t>* per_cell) {
+    ocl::Buffer<VdCorrespondence> dcorr = test::ToDevice(ctx, c);
+    ASSERT_TRUE(ctx->Fill(*counts, 0u, m + 1).ok());
+    ASSERT_TRUE(ocl::CountConstraints(*ctx, c.size(), dcorr, *f_.table, active.compact, *cell_of, *counts).ok());
+    *cells = test::FromDevice(ctx, *cell_of, c.size());
+    *per_cell = test::FromDevice(ctx, *counts, m);
+  };
+  std::vector<int32_t> cells;
+  std::vector<uint32_t> per_cell;
+  count_on_device(corr, &cells, &per_cell);
 
+  // The reference finds every cell's brick through the hash (no hint).
   const std::vector<int32_t> nbr = cpu::BrickNeighbours(ref_, f_.counts.used);
+  const int num_slots = int(f_.table->pool());
   std::vector<int32_t> ref_cells(corr.size());
   std::vector<uint32_t> ref_counts(m, 0u);
   for (size_t i = 0; i < corr.size(); ++i) {
-    ref_cells[i] = vd_sparse_constraint_cell(corr[i], ref_.keys.data(), ref_.slots.data(), ref_.capacity, nbr.data(),
-                                             compact.data());
+    VdCorrespondence c = corr[i];
+    c.target.w = -1.f;
+    ref_cells[i] = vd_sparse_constraint_cell(c, num_slots, ref_.slot_keys.data(), ref_.keys.data(), ref_.slots.data(),
+                                             ref_.capacity, nbr.data(), compact.data());
     if (ref_cells[i] >= 0) ++ref_counts[ref_cells[i]];
   }
   EXPECT_EQ(cells, ref_cells);
@@ -594,6 +605,36 @@ TEST_F(SparseMeshParityTest, ConstraintCellsMatchTheCpuAndTheDenseGrid) {
   for (int32_t c : cells) usable += c >= 0;
   EXPECT_GT(usable, corr.size() * 3 / 4);
   for (size_t i = corr.size() - 5; i < corr.size(); ++i) EXPECT_EQ(cells[i], -1);
+
+  // With hints (CorrespondenceParityTest: a constraint carries its triangle's first vertex's owning
+  // brick in target.w): the owner reaches the cell's brick through the neighbour table, and the
+  // cells are the same. So are they for hints that name the wrong brick, a slot without one, or no
+  // slot at all, which fall back to the hash.
+  const std::vector<int32_t> owners = test::FromDevice(ctx, mesh_.brick_slots, mesh_.num_vertices);
+  ASSERT_EQ(owners.size(), cm.positions_grid.size());
+  size_t near = 0;
+  for (size_t i = 0; i < owners.size(); ++i) {
+    const vd_float4 g = cm.positions_grid[i];
+    int l[3];
+    near += vd_brick_locate_near(int(std::floor(g.x)), int(std::floor(g.y)), int(std::floor(g.z)), owners[i],
+                                 num_slots, ref_.slot_keys.data(), ref_.keys.data(), ref_.slots.data(), ref_.capacity,
+                                 &l[0], &l[1], &l[2]) == owners[i];
+  }
+  EXPECT_EQ(near, owners.size());
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  for (int variant = 0; variant < 5; ++variant) {
+    std::vector<VdCorrespondence> hinted = corr;
+    for (size_t i = 0; i < hinted.size(); ++i) {
+      const float owner = i < owners.size() ? float(owners[i]) : 0.f;
+      const float hints[5] = {owner, float(owners[0]), float(f_.counts.used), 1e9f, nan};
+      hinted[i].target.w = hints[variant];
+    }
+    std::vector<int32_t> hinted_cells;
+    std::vector<uint32_t> hinted_counts;
+    count_on_device(hinted, &hinted_cells, &hinted_counts);
+    EXPECT_EQ(hinted_cells, ref_cells) << "hint variant " << variant;
+    EXPECT_EQ(hinted_counts, ref_counts) << "hint variant " << variant;
+  }
 
   // The dense grid: the same cell, named by its first corner's global grid coordinates.
   std::vector<float> dt, dw;

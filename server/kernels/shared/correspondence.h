@@ -15,8 +15,11 @@
 typedef struct {
   /* Canonical position of the model sample in grid units; w = confidence w_c (0 = pruned). */
   vd_float4 canonical;
-  /* Observed point and its normal in world (field) coordinates; w unused. */
+  /* Observed point in world (field) coordinates; w: a brick slot near the sample on the bricks
+   * (its triangle's first vertex's owner, vd_sparse_constraint_cell), so that its cell is found
+   * without probing the brick table; -1 (or anything not a slot next to the cell) for none. */
   vd_float4 target;
+  /* The observed normal in world coordinates; w unused. */
   vd_float4 normal;
 } VdCorrespondence;
 
@@ -37,16 +40,24 @@ VD_INLINE float vd_corr_weight(float dist, float n_dot, float view_dot, VdCorrPa
   return m * m;
 }
 
+/* The hint a constraint on a sample of triangle t carries (target.w): its first vertex's owning
+ * brick slot (owners: DeviceMesh::brick_slots of a mesh over the bricks; null otherwise: -1). */
+VD_INLINE float vd_corr_slot_hint(VD_GLOBAL const int* owners, VD_GLOBAL const int* tris, vd_uint t) {
+  return owners ? (float)owners[tris[3 * t]] : -1.0f;
+}
+
 /* Pixel i: model maps (camera coordinates, from the rasteriser), triangle ids and barycentrics,
- * the observed vertex and normal maps (camera coordinates), and the canonical mesh. */
+ * the observed vertex and normal maps (camera coordinates), the canonical mesh and its vertices'
+ * owning brick slots (null for none). */
 VD_INLINE VdCorrespondence vd_correspondence_pixel(int i, VD_GLOBAL const vd_float4* model_v,
                                                    VD_GLOBAL const vd_float4* model_n, VD_GLOBAL const vd_uint* ids,
                                                    VD_GLOBAL const vd_float4* bary, VD_GLOBAL const vd_float4* obs_v,
                                                    VD_GLOBAL const vd_float4* obs_n, VD_GLOBAL const vd_float4* canon,
-                                                   VD_GLOBAL const int* tris, VdCorrParams prm) {
+                                                   VD_GLOBAL const int* tris, VD_GLOBAL const int* owners,
+                                                   VdCorrParams prm) {
   VdCorrespondence c;
   c.canonical = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  c.target = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  c.target = VD_F4(0.0f, 0.0f, 0.0f, -1.0f);
   c.normal = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   vd_float4 p = model_v[i], n = model_n[i], pa = obs_v[i], na = obs_n[i];
   if (p.w == 0.0f || n.w == 0.0f || pa.w == 0.0f || na.w == 0.0f) return c;
@@ -60,6 +71,7 @@ VD_INLINE VdCorrespondence vd_correspondence_pixel(int i, VD_GLOBAL const vd_flo
   vd_float4 g = canon[tris[3 * t]] * b.x + canon[tris[3 * t + 1]] * b.y + canon[tris[3 * t + 2]] * b.z;
   c.canonical = VD_F4(g.x, g.y, g.z, w);
   c.target = vd_pose_apply(prm.cam_to_world, pa);
+  c.target.w = vd_corr_slot_hint(owners, tris, t);
   c.normal = vd_pose_rotate(prm.cam_to_world, na);
   return c;
 }
@@ -127,7 +139,7 @@ VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_ro
                                                 VdPhotoParams prm) {
   VdCorrespondence c;
   c.canonical = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  c.target = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  c.target = VD_F4(0.0f, 0.0f, 0.0f, -1.0f);
   c.normal = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   int w = prm.cam.width, x = i % w, y = i / w;
   /* Every second pixel, in a checkerboard, with twice the weight: neighbours see nearly the same
@@ -155,7 +167,7 @@ VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_ro
   c.canonical.w = 2.0f * depth_row.canonical.w * huber;
   c.normal = n;
   c.target = s0 - n * (prm.scale * r / nn);
-  c.target.w = 0.0f;
+  c.target.w = depth_row.target.w;
   /* A strong edge is where the linearisation holds least: its row weighs at most max_strength of a
    * depth row (the same zero, a smaller slope). */
   if (nn > prm.max_strength * prm.max_strength) c.normal = n * (prm.max_strength / sqrt(nn));

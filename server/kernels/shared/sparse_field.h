@@ -81,6 +81,31 @@ VD_INLINE int vd_brick_locate(int cx, int cy, int cz, VD_GLOBAL const vd_uint* k
   return vd_brick_coords_valid(bx, by, bz) ? vd_brick_find(keys, slots, capacity, vd_brick_pack(bx, by, bz)) : -1;
 }
 
+/* The pool slot and local coordinates of the brick holding global grid point (cx, cy, cz) as a
+ * cell's first corner, named relative to brick `hint` (a slot of the pool, num_slots of them)
+ * when the cell's corners lie within it or the bricks next to it (local -8..14), which the
+ * neighbour table reaches without probing the table; otherwise, or for a hint that is not a slot
+ * holding a brick, through the hash (vd_brick_locate). Either way the cell's corners come out
+ * the same: only the route to them differs. */
+VD_INLINE int vd_brick_locate_near(int cx, int cy, int cz, int hint, int num_slots, VD_GLOBAL const vd_uint* slot_keys,
+                                   VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity,
+                                   int* lx, int* ly, int* lz) {
+  if (hint >= 0 && hint < num_slots) {
+    vd_uint key = slot_keys[hint];
+    if (key != VD_BRICK_EMPTY) {
+      int bx, by, bz;
+      vd_brick_unpack(key, &bx, &by, &bz);
+      *lx = cx - VD_BRICK * bx;
+      *ly = cy - VD_BRICK * by;
+      *lz = cz - VD_BRICK * bz;
+      if (*lx >= -VD_BRICK && *ly >= -VD_BRICK && *lz >= -VD_BRICK && *lx < 2 * VD_BRICK - 1 &&
+          *ly < 2 * VD_BRICK - 1 && *lz < 2 * VD_BRICK - 1)
+        return hint;
+    }
+  }
+  return vd_brick_locate(cx, cy, cz, keys, slots, capacity, lx, ly, lz);
+}
+
 /* t_i of corner (cx + ox, cy + oy, cz + oz) of a cell whose base corner is local point (lx, ly, lz)
  * of `slot` (-1: not allocated): its t_i, or its rest position where its brick is not allocated
  * (it was never deformed). */
@@ -120,28 +145,21 @@ VD_INLINE vd_float4 vd_sparse_deform_point(vd_float4 g, VD_GLOBAL const vd_uint*
 }
 
 /* The same for a vertex of the mesh over the bricks, whose owning point lies in the brick in slot
- * `owner` (vd_sparse_mc_vertices): the vertex lies on that point's edge, so its cell starts at the
- * point or the next one along the edge, in that brick or the one across its face, which the
- * neighbour table reaches without probing the brick table: the same corners, so the same value.
- * Where the slot no longer holds a brick next to the cell (bricks dropped or moved since the mesh
- * was made), the cell's brick is looked up as vd_sparse_deform_point does. */
-VD_INLINE vd_float4 vd_sparse_deform_vertex(vd_float4 g, int owner, VD_GLOBAL const vd_uint* slot_keys,
+ * `owner` (vd_sparse_mc_vertices; num_slots slots in the pool): the vertex lies on that point's
+ * edge, so its cell starts at the point or the next one along the edge, in that brick or the one
+ * across its face, which the neighbour table reaches without probing the brick table
+ * (vd_brick_locate_near): the same corners, so the same value. Where the slot no longer holds a
+ * brick next to the cell (bricks dropped or moved since the mesh was made), the cell's brick is
+ * looked up in the table. */
+VD_INLINE vd_float4 vd_sparse_deform_vertex(vd_float4 g, int owner, int num_slots, VD_GLOBAL const vd_uint* slot_keys,
                                             VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity,
                                             VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
                                             float voxel_size) {
   int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
   float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
-  vd_uint key = slot_keys[owner];
-  if (key != VD_BRICK_EMPTY) {
-    int bx, by, bz;
-    vd_brick_unpack(key, &bx, &by, &bz);
-    int lx = cx - VD_BRICK * bx, ly = cy - VD_BRICK * by, lz = cz - VD_BRICK * bz;
-    /* The cell's corners (l .. l + 1) within the brick and the ones next to it. */
-    if (lx >= -VD_BRICK && ly >= -VD_BRICK && lz >= -VD_BRICK && lx < VD_BRICK + VD_BRICK - 1 &&
-        ly < VD_BRICK + VD_BRICK - 1 && lz < VD_BRICK + VD_BRICK - 1)
-      return vd_sparse_blend_cell(owner, lx, ly, lz, cx, cy, cz, fx, fy, fz, nbr, def_pos, voxel_size);
-  }
-  return vd_sparse_deform_point(g, keys, slots, capacity, nbr, def_pos, voxel_size);
+  int lx, ly, lz;
+  int slot = vd_brick_locate_near(cx, cy, cz, owner, num_slots, slot_keys, keys, slots, capacity, &lx, &ly, &lz);
+  return vd_sparse_blend_cell(slot, lx, ly, lz, cx, cy, cz, fx, fy, fz, nbr, def_pos, voxel_size);
 }
 
 /* A deformation field as the feature kernels read it: a dense grid's (keys null: t_i at grid index,
@@ -192,14 +210,14 @@ VD_INLINE int vd_field_contains(vd_float4 g, VdVolume vol, VD_GLOBAL const vd_ui
 
 /* vd_cell_corners on the bricks: the compact indices (compact: pool voxel -> active index) of the 8
  * corners of the cell holding global grid position g, and their trilinear weights; 0 when a corner
- * is not in M (or its brick is not allocated). */
-VD_INLINE int vd_sparse_cell_corners(vd_float4 g, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
-                                     vd_uint capacity, VD_GLOBAL const int* nbr, VD_GLOBAL const int* compact, int* idx,
-                                     float* alpha) {
+ * is not in M (or its brick is not allocated). hint: vd_brick_locate_near's (-1: none). */
+VD_INLINE int vd_sparse_cell_corners(vd_float4 g, int hint, int num_slots, VD_GLOBAL const vd_uint* slot_keys,
+                                     VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity,
+                                     VD_GLOBAL const int* nbr, VD_GLOBAL const int* compact, int* idx, float* alpha) {
   int cx = (int)floor(g.x), cy = (int)floor(g.y), cz = (int)floor(g.z);
   float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
   int lx, ly, lz;
-  int slot = vd_brick_locate(cx, cy, cz, keys, slots, capacity, &lx, &ly, &lz);
+  int slot = vd_brick_locate_near(cx, cy, cz, hint, num_slots, slot_keys, keys, slots, capacity, &lx, &ly, &lz);
   if (slot < 0) return 0;
   for (int o = 0; o < 8; ++o) {
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
@@ -212,13 +230,18 @@ VD_INLINE int vd_sparse_cell_corners(vd_float4 g, VD_GLOBAL const vd_uint* keys,
 }
 
 /* vd_constraint_cell on the bricks: the compact index of the first corner of c's cell, -1 when the
- * constraint is unusable. */
-VD_INLINE int vd_sparse_constraint_cell(VdCorrespondence c, VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots,
-                                        vd_uint capacity, VD_GLOBAL const int* nbr, VD_GLOBAL const int* compact) {
+ * constraint is unusable. The cell's brick is found from c's slot hint (target.w) where it can be. */
+VD_INLINE int vd_sparse_constraint_cell(VdCorrespondence c, int num_slots, VD_GLOBAL const vd_uint* slot_keys,
+                                        VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity,
+                                        VD_GLOBAL const int* nbr, VD_GLOBAL const int* compact) {
   if (!(c.canonical.w > 0.0f)) return -1;
   int idx[8];
   float alpha[8];
-  if (!vd_sparse_cell_corners(c.canonical, keys, slots, capacity, nbr, compact, idx, alpha)) return -1;
+  /* A hint is a slot number held exactly in a float; anything else is no hint. */
+  int hint = c.target.w >= 0.0f && c.target.w < (float)num_slots ? (int)c.target.w : -1;
+  if (!vd_sparse_cell_corners(c.canonical, hint, num_slots, slot_keys, keys, slots, capacity, nbr, compact,
+                              idx, alpha))
+    return -1;
   return idx[0];
 }
 

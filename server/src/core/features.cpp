@@ -567,7 +567,7 @@ void AppendSparseConstraints(const std::vector<SparseMatch>& matches, float weig
     for (int axis = 0; axis < 3; ++axis) {
       VdCorrespondence c;
       c.canonical = VD_F4(m.canonical.x, m.canonical.y, m.canonical.z, weight);
-      c.target = VD_F4(m.target.x, m.target.y, m.target.z, 1.f);
+      c.target = VD_F4(m.target.x, m.target.y, m.target.z, -1.f);  // w: no brick hint
       c.normal = VD_F4(axis == 0 ? 1.f : 0.f, axis == 1 ? 1.f : 0.f, axis == 2 ? 1.f : 0.f, 0.f);
       out->push_back(c);
     }

@@ -287,11 +287,11 @@ void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32
 
 void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_float4* obs_n,
                      const vd_float4* canonical_grid, const int32_t* triangles, VdCorrParams params, int n,
-                     VdCorrespondence* out) {
+                     VdCorrespondence* out, const int32_t* owners) {
 #pragma omp parallel for schedule(static)
   for (int i = 0; i < n; ++i)
     out[i] = vd_correspondence_pixel(i, model.vertex.data(), model.normal.data(), model.ids.data(), model.bary.data(),
-                                     obs_v, obs_n, canonical_grid, triangles, params);
+                                     obs_v, obs_n, canonical_grid, triangles, owners, params);
 }
 
 void PhotometricCorrespondences(const RasterMaps& model, const vd_float4* obs_v, const uint32_t* colors,

@@ -101,9 +101,11 @@ struct RasterMaps {
 void Rasterize(const vd_float4* positions, const vd_float4* normals, const int32_t* triangles, int num_triangles,
                VdPose world_to_cam, VdCamera cam, RasterMaps* out);
 
+// owners: each vertex's owning brick slot (a mesh over the bricks), carried as each constraint's
+// hint; null for none.
 void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_float4* obs_n,
                      const vd_float4* canonical_grid, const int32_t* triangles, VdCorrParams params, int n,
-                     VdCorrespondence* out);
+                     VdCorrespondence* out, const int32_t* owners = nullptr);
 
 // The dense colour term's rows (shared/correspondence.h vd_photometric_pixel): rows[n + i] from the
 // depth row rows[i] of each of the n = width x height pixels; colors per vertex of `triangles`.

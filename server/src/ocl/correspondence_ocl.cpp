@@ -4,14 +4,20 @@
 #include "ocl/device_ops.h"
 
 namespace vd {
+namespace {
+// What a mesh that names no owning bricks passes: its constraints carry no hint.
+const ocl::Buffer<int32_t> kNoOwners;
+}  // namespace
 
 Status DeviceOps::Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
                                   const ocl::Buffer<vd_float4>& obs_n, const DeviceMesh& mesh,
                                   const VdCorrParams& params, ocl::Buffer<VdCorrespondence>& out) {
   const size_t n = static_cast<size_t>(model.cam.width) * model.cam.height;
   if (out.size() < n) return OutOfRange("correspondence buffer smaller than the image");
+  // A mesh over the bricks names each vertex's owning brick: the constraints carry it as a hint.
+  const bool owned = mesh.num_vertices > 0 && mesh.num_brick_slots == mesh.num_vertices;
   return ocl::kCorrespondences(*ctx_, n, model.vertex, model.normal, model.ids, model.bary, obs_v, obs_n,
-                               mesh.positions_grid, mesh.triangles, params, out);
+                               mesh.positions_grid, mesh.triangles, owned ? mesh.brick_slots : kNoOwners, params, out);
 }
 
 Status DeviceOps::PhotometricCorrespondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,

@@ -120,7 +120,7 @@ Status DeviceOps::DeformVertices(const ocl::BrickTable& table, const ocl::BrickP
   if (mesh->num_vertices == 0) return Status::Ok();
   if (mesh->num_brick_slots == mesh->num_vertices)
     return ocl::kSparseDeformMeshVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, mesh->brick_slots,
-                                          table.slot_keys(), table.keys(), table.slots(), table.capacity(),
+                                          int32_t(table.pool()), table.slot_keys(), table.keys(), table.slots(), table.capacity(),
                                           table.neighbours(), pool.def_pos, voxel_size, mesh->positions);
   return ocl::kSparseDeformVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, table.keys(), table.slots(),
                                     table.capacity(), table.neighbours(), pool.def_pos, voxel_size, mesh->positions);
