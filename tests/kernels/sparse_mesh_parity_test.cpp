@@ -13,11 +13,11 @@
 #include "brick_scene.h"
 #include "cpu_ref/brick_hash_ref.h"
 #include "cpu_ref/cpu_ref.h"
+#include "device_ops_test.h"
 #include "ocl/device_ops.h"
 #include "ocl/mc_table.h"
 #include "shared/solver.h"
 #include "shared/sparse_field.h"
-#include "device_ops_test.h"
 #include "test_scenes.h"
 
 namespace vd {
@@ -616,9 +616,9 @@ TEST_F(SparseMeshParityTest, ConstraintCellsMatchTheCpuAndTheDenseGrid) {
   for (size_t i = 0; i < owners.size(); ++i) {
     const vd_float4 g = cm.positions_grid[i];
     int l[3];
-    near += vd_brick_locate_near(int(std::floor(g.x)), int(std::floor(g.y)), int(std::floor(g.z)), owners[i],
-                                 num_slots, ref_.slot_keys.data(), ref_.keys.data(), ref_.slots.data(), ref_.capacity,
-                                 &l[0], &l[1], &l[2]) == owners[i];
+    near += vd_brick_locate_near(int(std::floor(g.x)), int(std::floor(g.y)), int(std::floor(g.z)), owners[i], num_slots,
+                                 ref_.slot_keys.data(), ref_.keys.data(), ref_.slots.data(), ref_.capacity, &l[0],
+                                 &l[1], &l[2]) == owners[i];
   }
   EXPECT_EQ(near, owners.size());
   const float nan = std::numeric_limits<float>::quiet_NaN();

@@ -88,8 +88,8 @@ VD_INLINE int vd_brick_locate(int cx, int cy, int cz, VD_GLOBAL const vd_uint* k
  * holding a brick, through the hash (vd_brick_locate). Either way the cell's corners come out
  * the same: only the route to them differs. */
 VD_INLINE int vd_brick_locate_near(int cx, int cy, int cz, int hint, int num_slots, VD_GLOBAL const vd_uint* slot_keys,
-                                   VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity,
-                                   int* lx, int* ly, int* lz) {
+                                   VD_GLOBAL const vd_uint* keys, VD_GLOBAL const int* slots, vd_uint capacity, int* lx,
+                                   int* ly, int* lz) {
   if (hint >= 0 && hint < num_slots) {
     vd_uint key = slot_keys[hint];
     if (key != VD_BRICK_EMPTY) {
@@ -239,8 +239,7 @@ VD_INLINE int vd_sparse_constraint_cell(VdCorrespondence c, int num_slots, VD_GL
   float alpha[8];
   /* A hint is a slot number held exactly in a float; anything else is no hint. */
   int hint = c.target.w >= 0.0f && c.target.w < (float)num_slots ? (int)c.target.w : -1;
-  if (!vd_sparse_cell_corners(c.canonical, hint, num_slots, slot_keys, keys, slots, capacity, nbr, compact,
-                              idx, alpha))
+  if (!vd_sparse_cell_corners(c.canonical, hint, num_slots, slot_keys, keys, slots, capacity, nbr, compact, idx, alpha))
     return -1;
   return idx[0];
 }

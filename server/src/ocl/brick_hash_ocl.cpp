@@ -310,8 +310,8 @@ Status CountConstraints(Context& ctx, size_t n, const Buffer<VdCorrespondence>& 
                         const Buffer<int32_t>& compact, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts) {
   if (corr.size() < n || cell_of.size() < n) return InvalidArgument("constraint buffers smaller than n");
   if (n == 0) return Status::Ok();
-  return kSparseConstraintCount(ctx, n, corr, int32_t(table.pool()), table.slot_keys(), table.keys(), table.slots(), table.capacity(), table.neighbours(),
-                                compact, cell_of, counts);
+  return kSparseConstraintCount(ctx, n, corr, int32_t(table.pool()), table.slot_keys(), table.keys(), table.slots(),
+                                table.capacity(), table.neighbours(), compact, cell_of, counts);
 }
 
 Status GrowBricks(Context& ctx, const BrickTable& table, BrickPool& pool, size_t count, const Buffer<int32_t>& slots,

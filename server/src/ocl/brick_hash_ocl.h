@@ -96,16 +96,16 @@ inline constexpr Kernel<void(const Buffer<vd_float4>& grid_pos, const Buffer<uin
                              const Buffer<vd_float4>& def_pos, float voxel_size, Buffer<vd_float4>& out)>
     kSparseDeformVertices{"vd_sparse_deform_vertices"};
 // One item per vertex of the mesh over the bricks (DeviceMesh::brick_slots).
-inline constexpr Kernel<void(const Buffer<vd_float4>& grid_pos, const Buffer<int32_t>& owner,
-                             int32_t num_slots, const Buffer<uint32_t>& slot_keys, const Buffer<uint32_t>& keys,
+inline constexpr Kernel<void(const Buffer<vd_float4>& grid_pos, const Buffer<int32_t>& owner, int32_t num_slots,
+                             const Buffer<uint32_t>& slot_keys, const Buffer<uint32_t>& keys,
                              const Buffer<int32_t>& slots, uint32_t capacity, const Buffer<int32_t>& nbr,
                              const Buffer<vd_float4>& def_pos, float voxel_size, Buffer<vd_float4>& out)>
     kSparseDeformMeshVertices{"vd_sparse_deform_mesh_vertices"};
 // One item per per-pixel constraint.
-inline constexpr Kernel<void(const Buffer<VdCorrespondence>& corr, int32_t num_slots,
-                             const Buffer<uint32_t>& slot_keys, const Buffer<uint32_t>& keys,
-                             const Buffer<int32_t>& slots, uint32_t capacity, const Buffer<int32_t>& nbr,
-                             const Buffer<int32_t>& compact, Buffer<int32_t>& cell_of, Buffer<uint32_t>& counts)>
+inline constexpr Kernel<void(const Buffer<VdCorrespondence>& corr, int32_t num_slots, const Buffer<uint32_t>& slot_keys,
+                             const Buffer<uint32_t>& keys, const Buffer<int32_t>& slots, uint32_t capacity,
+                             const Buffer<int32_t>& nbr, const Buffer<int32_t>& compact, Buffer<int32_t>& cell_of,
+                             Buffer<uint32_t>& counts)>
     kSparseConstraintCount{"vd_sparse_constraint_count"};
 // Laned, one item per voxel of the listed bricks.
 inline constexpr Kernel<void(const Buffer<int32_t>& visible, const Buffer<uint32_t>& slot_keys, Buffer<float>& tsdf,

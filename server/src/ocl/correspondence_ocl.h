@@ -14,7 +14,8 @@ inline constexpr Kernel<void(const Buffer<vd_float4>& model_v, const Buffer<vd_f
                              const Buffer<uint32_t>& ids, const Buffer<vd_float4>& bary, const Buffer<vd_float4>& obs_v,
                              const Buffer<vd_float4>& obs_n, const Buffer<vd_float4>& canon,
                              const Buffer<int32_t>& tris, const Buffer<int32_t>& owners, VdCorrParams prm,
-                             Buffer<VdCorrespondence>& out)> kCorrespondences{"vd_correspondences"};
+                             Buffer<VdCorrespondence>& out)>
+    kCorrespondences{"vd_correspondences"};
 // One item per pixel: writes out[items + i] from out[i].
 inline constexpr Kernel<void(const Buffer<vd_float4>& model_v, const Buffer<vd_float4>& obs_v,
                              const Buffer<uint32_t>& ids, const Buffer<vd_float4>& bary, const Buffer<uint32_t>& colors,

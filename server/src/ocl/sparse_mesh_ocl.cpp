@@ -119,9 +119,9 @@ Status DeviceOps::DeformVertices(const ocl::BrickTable& table, const ocl::BrickP
   if (!pool.with_field) return FailedPrecondition("DeformVertices needs a brick pool with a deformation field");
   if (mesh->num_vertices == 0) return Status::Ok();
   if (mesh->num_brick_slots == mesh->num_vertices)
-    return ocl::kSparseDeformMeshVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, mesh->brick_slots,
-                                          int32_t(table.pool()), table.slot_keys(), table.keys(), table.slots(), table.capacity(),
-                                          table.neighbours(), pool.def_pos, voxel_size, mesh->positions);
+    return ocl::kSparseDeformMeshVertices(
+        *ctx_, mesh->num_vertices, mesh->positions_grid, mesh->brick_slots, int32_t(table.pool()), table.slot_keys(),
+        table.keys(), table.slots(), table.capacity(), table.neighbours(), pool.def_pos, voxel_size, mesh->positions);
   return ocl::kSparseDeformVertices(*ctx_, mesh->num_vertices, mesh->positions_grid, table.keys(), table.slots(),
                                     table.capacity(), table.neighbours(), pool.def_pos, voxel_size, mesh->positions);
 }
