@@ -16,10 +16,11 @@ __kernel void vd_level_mark(VdLattice fine, __global const int* lat_nbr, __globa
   if ((int)get_global_id(0) >= vd_items) return;
   int slot, x, y, z;
   vd_lattice_point(fine, list_f[get_global_id(0)], &slot, &x, &y, &z);
-  for (int o = 0; o < 8; ++o) {
-    int e = vd_level_corner(coarse, lat_nbr, s, slot, x, y, z, o);
-    if (e >= 0) member[e] = 1;
-  }
+  int cx, cy, cz, e[8];
+  vd_lattice_coarse_cell(coarse, s, x, y, z, &cx, &cy, &cz);
+  vd_lattice_cell_entries(coarse, lat_nbr, slot, cx, cy, cz, e);
+  for (int o = 0; o < 8; ++o)
+    if (e[o] >= 0) member[e[o]] = 1;
 }
 
 /* One work item per row of `row` entries (a dense grid's x rows, or a brick's rows): members per

@@ -95,9 +95,11 @@ VD_INLINE int vd_level_cell(VdActive fine, int kf, vd_float4 g, int s, VdActive 
   vd_lattice_global(coarse.lat, coarse.slot_keys, slot, cx, cy, cz, &gx, &gy, &gz);
   vd_float4 gc = vd_level_coords(g.x, g.y, g.z, s);
   float fx = gc.x - (float)gx, fy = gc.y - (float)gy, fz = gc.z - (float)gz;
+  int e[8];
+  vd_lattice_cell_entries(coarse.lat, coarse.nbr, slot, cx, cy, cz, e);
   for (int o = 0; o < 8; ++o) {
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
-    idx[o] = vd_lattice_compact(coarse.lat, coarse.nbr, coarse.compact, slot, cx + ox, cy + oy, cz + oz);
+    idx[o] = e[o] < 0 ? -1 : coarse.compact[e[o]];
     if (idx[o] < 0) return 0;
     alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
   }
@@ -147,9 +149,11 @@ VD_INLINE vd_float4 vd_level_prolongate(int k, VdActive fine, int s, VdActive co
   vd_lattice_global(coarse.lat, coarse.slot_keys, slot, cx, cy, cz, &cgx, &cgy, &cgz);
   vd_float4 g = vd_level_coords((float)gx, (float)gy, (float)gz, s);
   float fx = g.x - (float)cgx, fy = g.y - (float)cgy, fz = g.z - (float)cgz;
+  int e[8];
+  vd_lattice_cell_entries(coarse.lat, coarse.nbr, slot, cx, cy, cz, e);
   for (int o = 0; o < 8; ++o) {
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
-    idx[o] = vd_lattice_compact(coarse.lat, coarse.nbr, coarse.compact, slot, cx + ox, cy + oy, cz + oz);
+    idx[o] = e[o] < 0 ? -1 : coarse.compact[e[o]];
     alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
     if (idx[o] < 0 && alpha[o] != 0.0f) return u;
   }

@@ -122,6 +122,28 @@ VD_INLINE int vd_lattice_entry(VdLattice l, VD_GLOBAL const int* nbr, int slot, 
   return (s << (3 * sh)) + (x - dx * l.dim_x) + (((y - dy * l.dim_y) + ((z - dz * l.dim_z) << sh)) << sh);
 }
 
+/* 1 when every point within r of local point (x, y, z) (each coordinate +-r) lies in the same
+ * brick (the same dense grid): their entries are then the point's plus vd_lattice_offset, with
+ * no table read and no bounds test. */
+VD_INLINE int vd_lattice_interior(VdLattice l, int x, int y, int z, int r) {
+  return x >= r && y >= r && z >= r && x < l.dim_x - r && y < l.dim_y - r && z < l.dim_z - r;
+}
+
+/* Entry of the point (dx, dy, dz) away from another of the same brick (vd_lattice_interior). */
+VD_INLINE int vd_lattice_offset(VdLattice l, int dx, int dy, int dz) { return dx + l.dim_x * (dy + l.dim_y * dz); }
+
+/* The entries of the 8 corners (x + ox, y + oy, z + oz), o = ox + 2 oy + 4 oz, of the cell whose
+ * first corner is local point (x, y, z) of the brick in `slot` (vd_lattice_entry's, -1 where there
+ * is none); a cell inside the brick (most of them) by offsets from its first corner. */
+VD_INLINE void vd_lattice_cell_entries(VdLattice l, VD_GLOBAL const int* nbr, int slot, int x, int y, int z, int* e) {
+  if (x >= 0 && y >= 0 && z >= 0 && x < l.dim_x - 1 && y < l.dim_y - 1 && z < l.dim_z - 1) {
+    int e0 = vd_lattice_entry(l, nbr, slot, x, y, z);
+    for (int o = 0; o < 8; ++o) e[o] = e0 + vd_lattice_offset(l, o & 1, (o >> 1) & 1, (o >> 2) & 1);
+    return;
+  }
+  for (int o = 0; o < 8; ++o) e[o] = vd_lattice_entry(l, nbr, slot, x + (o & 1), y + ((o >> 1) & 1), z + ((o >> 2) & 1));
+}
+
 /* The last x of the run that starts at local x and ends at most at x_last, over which entries are
  * consecutive (entry(x + i) = entry(x) + i, all present or all absent): runs break where a brick
  * (or a dense grid) begins and ends, at 0 and dim_x. Walking a window by runs looks up one entry

@@ -154,9 +154,11 @@ VD_INLINE int vd_active_cell(VdActive a, int kc, vd_float4 g, int* idx, float* a
   int slot, x, y, z, gx, gy, gz;
   vd_active_point(a, kc, &slot, &x, &y, &z, &gx, &gy, &gz);
   float fx = g.x - (float)gx, fy = g.y - (float)gy, fz = g.z - (float)gz;
+  int e[8];
+  vd_lattice_cell_entries(a.lat, a.nbr, slot, x, y, z, e);
   for (int o = 0; o < 8; ++o) {
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
-    idx[o] = vd_lattice_compact(a.lat, a.nbr, a.compact, slot, x + ox, y + oy, z + oz);
+    idx[o] = e[o] < 0 ? -1 : a.compact[e[o]];
     if (idx[o] < 0) return 0;
     alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
   }
@@ -348,11 +350,16 @@ VD_INLINE VdMat3 vd_mat3_inverse_spd(VdMat3 d) {
 VD_INLINE vd_float4 vd_btb_assemble(int k, VdActive a, VD_GLOBAL const int* neighbours, VD_GLOBAL const float* edge_w,
                                     VD_GLOBAL const float* moments, VdSolverWeights w, VD_GLOBAL const vd_float4* x0,
                                     int shift, VD_GLOBAL float* blocks, VD_GLOBAL int* nbr, VdMat3* diag_inv) {
-  int slot, x, y, z;
-  vd_lattice_point(a.lat, a.list[k], &slot, &x, &y, &z);
-  for (int o = 0; o < VD_BTB_BLOCKS; ++o)
-    nbr[VD_BTB_BLOCKS * k + o] =
-        vd_lattice_compact(a.lat, a.nbr, a.compact, slot, x + o % 3 - 1, y + (o / 3) % 3 - 1, z + o / 9 - 1);
+  int slot, x, y, z, e = a.list[k];
+  vd_lattice_point(a.lat, e, &slot, &x, &y, &z);
+  if (vd_lattice_interior(a.lat, x, y, z, 1)) {
+    for (int o = 0; o < VD_BTB_BLOCKS; ++o)
+      nbr[VD_BTB_BLOCKS * k + o] = a.compact[e + vd_lattice_offset(a.lat, o % 3 - 1, (o / 3) % 3 - 1, o / 9 - 1)];
+  } else {
+    for (int o = 0; o < VD_BTB_BLOCKS; ++o)
+      nbr[VD_BTB_BLOCKS * k + o] =
+          vd_lattice_compact(a.lat, a.nbr, a.compact, slot, x + o % 3 - 1, y + (o / 3) % 3 - 1, z + o / 9 - 1);
+  }
   float acc[VD_BTB_FLOATS];
   for (int i = 0; i < VD_BTB_FLOATS; ++i) acc[i] = 0.0f;
   vd_float4 data = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
