@@ -141,7 +141,8 @@ VD_INLINE void vd_lattice_cell_entries(VdLattice l, VD_GLOBAL const int* nbr, in
     for (int o = 0; o < 8; ++o) e[o] = e0 + vd_lattice_offset(l, o & 1, (o >> 1) & 1, (o >> 2) & 1);
     return;
   }
-  for (int o = 0; o < 8; ++o) e[o] = vd_lattice_entry(l, nbr, slot, x + (o & 1), y + ((o >> 1) & 1), z + ((o >> 2) & 1));
+  for (int o = 0; o < 8; ++o)
+    e[o] = vd_lattice_entry(l, nbr, slot, x + (o & 1), y + ((o >> 1) & 1), z + ((o >> 2) & 1));
 }
 
 /* The last x of the run that starts at local x and ends at most at x_last, over which entries are
