@@ -231,10 +231,17 @@ VD_INLINE vd_uchar vd_sparse_surface_point(VD_GLOBAL const vd_ushort* codes, VD_
 }
 
 /* Pool index of the d-th 6-neighbour (-x, +x, -y, +y, -z, +z) of local point (x, y, z) of `slot`,
- * -1 when its brick is not allocated. */
+ * -1 when its brick is not allocated. Only the coordinate along d's axis moves: inside the brick
+ * one stride away, across its face the same point of the brick there with that coordinate wrapped
+ * (vd_brick_voxel_at's index, without testing the two axes that stay). */
 VD_INLINE int vd_sparse_face_neighbour(VD_GLOBAL const int* nbr, int slot, int x, int y, int z, int d) {
-  int s = (d & 1) ? 1 : -1;
-  return vd_brick_voxel_at(nbr, slot, x + (d >> 1 == 0 ? s : 0), y + (d >> 1 == 1 ? s : 0), z + (d >> 1 == 2 ? s : 0));
+  int axis = d >> 1, s = (d & 1) ? 1 : -1;
+  int c = axis == 0 ? x : (axis == 1 ? y : z), stride = axis == 0 ? 1 : (axis == 1 ? VD_BRICK : VD_BRICK_ROWS);
+  int v = slot * VD_BRICK_VOXELS + x + VD_BRICK * y + VD_BRICK_ROWS * z;
+  if (c + s >= 0 && c + s < VD_BRICK) return v + s * stride;
+  int other = nbr[VD_BRICK_NEIGHBOURS * slot +
+                  vd_brick_neighbour_index(axis == 0 ? s : 0, axis == 1 ? s : 0, axis == 2 ? s : 0)];
+  return other < 0 ? -1 : v + (other - slot) * VD_BRICK_VOXELS - s * (VD_BRICK - 1) * stride;
 }
 
 /* 1 when local point (x, y, z) of `slot` is a surface point or a 6-neighbour of one. */
