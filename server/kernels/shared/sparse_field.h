@@ -24,7 +24,8 @@ VD_INLINE void vd_sparse_extrapolate_gather(int v, VD_GLOBAL const vd_uchar* sur
   for (int k = 0; k < (faces_only ? 6 : 27); ++k) {
     int dx, dy, dz;
     if (!vd_gather_offset(faces_only, k, &dx, &dy, &dz)) continue;
-    int j = vd_brick_voxel_at(nbr, slot, x + dx, y + dy, z + dz);
+    int j = faces_only ? vd_sparse_face_neighbour(nbr, slot, x, y, z, k)
+                       : vd_brick_voxel_at(nbr, slot, x + dx, y + dy, z + dz);
     if (j < 0) continue;
     if (surface != 0 && !surface[j]) continue;
     vd_float4 t = def_pos[j];
