@@ -124,10 +124,14 @@ VD_INLINE vd_float4 vd_sparse_blend_cell(int slot, int lx, int ly, int lz, int c
                                          float fz, VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
                                          float voxel_size) {
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
+  int inside = slot >= 0 && vd_brick_cell_inside(lx, ly, lz);
+  int v0 = slot * VD_BRICK_VOXELS + lx + VD_BRICK * ly + VD_BRICK_ROWS * lz;
   for (int k = 0; k < 8; ++k) {
     int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
     float a = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
-    acc = acc + vd_sparse_corner(slot, lx, ly, lz, cx, cy, cz, ox, oy, oz, nbr, def_pos, voxel_size) * a;
+    vd_float4 t = inside ? def_pos[v0 + ox + VD_BRICK * oy + VD_BRICK_ROWS * oz]
+                         : vd_sparse_corner(slot, lx, ly, lz, cx, cy, cz, ox, oy, oz, nbr, def_pos, voxel_size);
+    acc = acc + t * a;
   }
   acc.w = 1.0f;
   return acc;
@@ -220,9 +224,12 @@ VD_INLINE int vd_sparse_cell_corners(vd_float4 g, int hint, int num_slots, VD_GL
   int lx, ly, lz;
   int slot = vd_brick_locate_near(cx, cy, cz, hint, num_slots, slot_keys, keys, slots, capacity, &lx, &ly, &lz);
   if (slot < 0) return 0;
+  int inside = vd_brick_cell_inside(lx, ly, lz);
+  int v0 = slot * VD_BRICK_VOXELS + lx + VD_BRICK * ly + VD_BRICK_ROWS * lz;
   for (int o = 0; o < 8; ++o) {
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
-    int v = vd_brick_voxel_at(nbr, slot, lx + ox, ly + oy, lz + oz);
+    int v =
+        inside ? v0 + ox + VD_BRICK * oy + VD_BRICK_ROWS * oz : vd_brick_voxel_at(nbr, slot, lx + ox, ly + oy, lz + oz);
     idx[o] = v >= 0 ? compact[v] : -1;
     if (idx[o] < 0) return 0;
     alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);

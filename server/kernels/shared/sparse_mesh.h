@@ -55,6 +55,12 @@ VD_INLINE int vd_brick_voxel_at(VD_GLOBAL const int* nbr, int slot, int x, int y
          VD_BRICK_ROWS * (z - VD_BRICK * dz);
 }
 
+/* 1 when the cell whose first corner is local point (lx, ly, lz) has all 8 corners in the brick
+ * itself: they are then that point's pool index plus fixed offsets, without vd_brick_voxel_at. */
+VD_INLINE int vd_brick_cell_inside(int lx, int ly, int lz) {
+  return lx >= 0 && ly >= 0 && lz >= 0 && lx < VD_BRICK - 1 && ly < VD_BRICK - 1 && lz < VD_BRICK - 1;
+}
+
 /* The distance at a pool index, 1 (unobserved, at rest) for -1. */
 VD_INLINE float vd_pool_tsdf(VD_GLOBAL const float* tsdf, int i) { return i < 0 ? 1.0f : tsdf[i]; }
 
