@@ -107,12 +107,11 @@ VD_INLINE int vd_brick_locate_near(int cx, int cy, int cz, int hint, int num_slo
   return vd_brick_locate(cx, cy, cz, keys, slots, capacity, lx, ly, lz);
 }
 
-/* t_i of corner (cx + ox, cy + oy, cz + oz) of a cell whose base corner is local point (lx, ly, lz)
- * of `slot` (-1: not allocated): its t_i, or its rest position where its brick is not allocated
- * (it was never deformed). */
-VD_INLINE vd_float4 vd_sparse_corner(int slot, int lx, int ly, int lz, int cx, int cy, int cz, int ox, int oy, int oz,
-                                     VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
-  int j = slot >= 0 ? vd_brick_voxel_at(nbr, slot, lx + ox, ly + oy, lz + oz) : -1;
+/* t_i of corner (cx + ox, cy + oy, cz + oz) of a cell, at pool index j (vd_brick_cell_voxels; -1:
+ * its brick is not allocated): its t_i, or its rest position where there is no brick (it was never
+ * deformed). */
+VD_INLINE vd_float4 vd_sparse_corner(int j, int cx, int cy, int cz, int ox, int oy, int oz,
+                                     VD_GLOBAL const vd_float4* def_pos, float voxel_size) {
   return j >= 0
              ? def_pos[j]
              : VD_F4(voxel_size * (float)(cx + ox), voxel_size * (float)(cy + oy), voxel_size * (float)(cz + oz), 0.0f);
@@ -124,14 +123,12 @@ VD_INLINE vd_float4 vd_sparse_blend_cell(int slot, int lx, int ly, int lz, int c
                                          float fz, VD_GLOBAL const int* nbr, VD_GLOBAL const vd_float4* def_pos,
                                          float voxel_size) {
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
-  int inside = slot >= 0 && vd_brick_cell_inside(lx, ly, lz);
-  int v0 = slot * VD_BRICK_VOXELS + lx + VD_BRICK * ly + VD_BRICK_ROWS * lz;
+  int v[8];
+  vd_brick_cell_voxels(nbr, slot, lx, ly, lz, v);
   for (int k = 0; k < 8; ++k) {
     int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
     float a = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
-    vd_float4 t = inside ? def_pos[v0 + ox + VD_BRICK * oy + VD_BRICK_ROWS * oz]
-                         : vd_sparse_corner(slot, lx, ly, lz, cx, cy, cz, ox, oy, oz, nbr, def_pos, voxel_size);
-    acc = acc + t * a;
+    acc = acc + vd_sparse_corner(v[k], cx, cy, cz, ox, oy, oz, def_pos, voxel_size) * a;
   }
   acc.w = 1.0f;
   return acc;
@@ -190,11 +187,13 @@ VD_INLINE vd_float4 vd_field_deform(vd_float4 g, VD_FIELD_ARGS, VdMat3* J) {
   float fx = g.x - (float)cx, fy = g.y - (float)cy, fz = g.z - (float)cz;
   vd_float4 acc = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   *J = vd_mat3_zero();
+  int v[8];
+  if (keys) vd_brick_cell_voxels(nbr, slot, lx, ly, lz, v);
   for (int k = 0; k < 8; ++k) {
     int ox = k & 1, oy = (k >> 1) & 1, oz = (k >> 2) & 1;
     float wx = ox ? fx : 1.0f - fx, wy = oy ? fy : 1.0f - fy, wz = oz ? fz : 1.0f - fz;
     float sx = ox ? 1.0f : -1.0f, sy = oy ? 1.0f : -1.0f, sz = oz ? 1.0f : -1.0f;
-    vd_float4 t = keys ? vd_sparse_corner(slot, lx, ly, lz, cx, cy, cz, ox, oy, oz, nbr, def_pos, vol.voxel_size)
+    vd_float4 t = keys ? vd_sparse_corner(v[k], cx, cy, cz, ox, oy, oz, def_pos, vol.voxel_size)
                        : def_pos[cx + ox + vol.dim_x * (cy + oy + vol.dim_y * (cz + oz))];
     acc = acc + t * (wx * wy * wz);
     vd_float4 grad = VD_F4(sx * wy * wz, wx * sy * wz, wx * wy * sz, 0.0f);
@@ -224,13 +223,11 @@ VD_INLINE int vd_sparse_cell_corners(vd_float4 g, int hint, int num_slots, VD_GL
   int lx, ly, lz;
   int slot = vd_brick_locate_near(cx, cy, cz, hint, num_slots, slot_keys, keys, slots, capacity, &lx, &ly, &lz);
   if (slot < 0) return 0;
-  int inside = vd_brick_cell_inside(lx, ly, lz);
-  int v0 = slot * VD_BRICK_VOXELS + lx + VD_BRICK * ly + VD_BRICK_ROWS * lz;
+  int v[8];
+  vd_brick_cell_voxels(nbr, slot, lx, ly, lz, v);
   for (int o = 0; o < 8; ++o) {
     int ox = o & 1, oy = (o >> 1) & 1, oz = (o >> 2) & 1;
-    int v =
-        inside ? v0 + ox + VD_BRICK * oy + VD_BRICK_ROWS * oz : vd_brick_voxel_at(nbr, slot, lx + ox, ly + oy, lz + oz);
-    idx[o] = v >= 0 ? compact[v] : -1;
+    idx[o] = v[o] >= 0 ? compact[v[o]] : -1;
     if (idx[o] < 0) return 0;
     alpha[o] = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
   }

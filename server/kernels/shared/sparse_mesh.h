@@ -55,10 +55,20 @@ VD_INLINE int vd_brick_voxel_at(VD_GLOBAL const int* nbr, int slot, int x, int y
          VD_BRICK_ROWS * (z - VD_BRICK * dz);
 }
 
-/* 1 when the cell whose first corner is local point (lx, ly, lz) has all 8 corners in the brick
- * itself: they are then that point's pool index plus fixed offsets, without vd_brick_voxel_at. */
-VD_INLINE int vd_brick_cell_inside(int lx, int ly, int lz) {
-  return lx >= 0 && ly >= 0 && lz >= 0 && lx < VD_BRICK - 1 && ly < VD_BRICK - 1 && lz < VD_BRICK - 1;
+/* Pool indices of the 8 corners (lx + ox, ly + oy, lz + oz), o = ox + 2 oy + 4 oz, of the cell whose
+ * first corner is local point (lx, ly, lz) of `slot` (vd_brick_voxel_at's; all -1 for slot -1). A
+ * cell inside the brick (most of them) takes its first corner's index plus fixed offsets. */
+VD_INLINE void vd_brick_cell_voxels(VD_GLOBAL const int* nbr, int slot, int lx, int ly, int lz, int* v) {
+  if (slot < 0) {
+    for (int o = 0; o < 8; ++o) v[o] = -1;
+    return;
+  }
+  if (lx >= 0 && ly >= 0 && lz >= 0 && lx < VD_BRICK - 1 && ly < VD_BRICK - 1 && lz < VD_BRICK - 1) {
+    int v0 = slot * VD_BRICK_VOXELS + lx + VD_BRICK * ly + VD_BRICK_ROWS * lz;
+    for (int o = 0; o < 8; ++o) v[o] = v0 + (o & 1) + VD_BRICK * ((o >> 1) & 1) + VD_BRICK_ROWS * (o >> 2);
+    return;
+  }
+  for (int o = 0; o < 8; ++o) v[o] = vd_brick_voxel_at(nbr, slot, lx + (o & 1), ly + ((o >> 1) & 1), lz + (o >> 2));
 }
 
 /* The distance at a pool index, 1 (unobserved, at rest) for -1. */
