@@ -53,7 +53,9 @@ class Node::Impl {
         engine_(std::move(engine)),
         gate_(std::move(gate)),
         output_key_(std::move(output_key)),
-        scheduler_(!options.checkpoint_dir.empty(), options.checkpoint_interval, Clock::now()) {}
+        scheduler_(!options.checkpoint_dir.empty(), options.checkpoint_interval, Clock::now()) {
+    draco_.speed = static_cast<int>(options.draco_speed);
+  }
 
   void OnFrame(const lcm::ReceiveBuffer* rbuf) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -362,13 +364,13 @@ class Node::Impl {
   // The live mesh is encoded for every frame (outside mutex_: Draco takes ~20 ms on a 50k-vertex
   // mesh); the canonical one only when it is published or saved (EncodeCanonical), at most once a
   // second, instead of every frame.
-  static std::optional<vdeform::mesh_t> EncodeLive(FrameResult* result, int64_t seq) {
+  std::optional<vdeform::mesh_t> EncodeLive(FrameResult* result, int64_t seq) const {
     // Every live mesh carries its vertices' canonical positions (same vertices, same order), so
     // viewers colour by canonical position on every frame, not only when a canonical mesh came.
     TriangleMesh& live_mesh = result->live_mesh;
     if (result->canonical_mesh.positions.size() == live_mesh.positions.size())
       live_mesh.canonical = result->canonical_mesh.positions;
-    auto live = MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE);
+    auto live = MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE, vdeform::mesh_t::ENCODING_DRACO, draco_);
     if (live.ok()) return std::move(live).value();
     VD_LOG_WARNING << "cannot encode live mesh: " << live.status().ToString();
     return std::nullopt;
@@ -385,7 +387,8 @@ class Node::Impl {
   // Encodes the newest canonical mesh if it is not yet (mutex_ held).
   void EncodeCanonical() {
     if (!canonical_pending_) return;
-    auto canonical = MeshToMessage(*canonical_pending_, NowUs(), canonical_pending_seq_, vdeform::mesh_t::KIND_CANONICAL);
+    auto canonical = MeshToMessage(*canonical_pending_, NowUs(), canonical_pending_seq_, vdeform::mesh_t::KIND_CANONICAL,
+                                   vdeform::mesh_t::ENCODING_DRACO, draco_);
     if (canonical.ok()) last_canonical_ = std::move(canonical).value();
     else VD_LOG_WARNING << "cannot encode canonical mesh: " << canonical.status().ToString();
     canonical_pending_.reset();
@@ -462,7 +465,7 @@ class Node::Impl {
   // names the frame), kept for REQUEST_MESH and, with --save-dir, written numbered by the frame's
   // sequence number (the node has no source index).
   void OutputTracked(const TriangleMesh& tracked, int64_t seq) {
-    auto msg = MeshToMessage(tracked, NowUs(), seq, vdeform::mesh_t::KIND_TRACKED);
+    auto msg = MeshToMessage(tracked, NowUs(), seq, vdeform::mesh_t::KIND_TRACKED, vdeform::mesh_t::ENCODING_DRACO, draco_);
     if (msg.ok()) {
       std::lock_guard<std::mutex> lock(mutex_);
       last_tracked_ = std::move(msg).value();
@@ -581,6 +584,8 @@ class Node::Impl {
 
   // Borrowed from the caller, which validated them once at start-up.
   const ServerOptions& options_;
+  // How published meshes are encoded (--draco-speed).
+  DracoOptions draco_;
   const StreamChannels channels_;
   // Borrowed from the caller; publishing is thread-safe in LCM.
   lcm::LCM* lcm_;

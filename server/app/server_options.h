@@ -50,6 +50,12 @@ struct ServerOptions {
   // Every mesh and status message signed under the key in this file (one line KEY), so viewers and
   // lockstep captures given it take only what this server sent; empty = the output goes unsigned.
   std::string output_key_file;
+  // Draco speed of the published meshes (DracoOptions::speed). 10, sequential connectivity, encodes
+  // the tube's 27 k triangles in ~3.5 ms against 6-10 ms for edgebreaker (7), which also falls back
+  // to sequential on about half of the marching-cubes meshes (non-manifold vertices): the output
+  // thread shares the two cores with the solve, so the fast one is the default (live 30 Hz: 73-80
+  // of 150 frames against 51-77, BENCHMARKS "Session 34"); 0-9 give ~2.4x smaller messages.
+  int64_t draco_speed = 10;
   // What the gate lets through: frame size, sequence jumps (bound to flags by GateParams::Bind).
   GateParams gate;
   bool quiet = false;

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <csignal>
 #include <filesystem>
+#include <set>
 #include <thread>
 
 #include "core/checkpoint.h"
@@ -337,6 +338,54 @@ TEST_F(NodeTest, OutputIsStampedAndUnsignedWithoutAKey) {
   EXPECT_NE(st.epoch, 0);
   EXPECT_EQ(inbox_.meshes.front().epoch, st.epoch);
   EXPECT_GT(st.out_seq, inbox_.meshes.front().out_seq);
+}
+
+// Draco's header byte naming the connectivity coding (after "DRACO", the version and the
+// geometry type): 0 sequential, 1 edgebreaker.
+int DracoMethod(const vdeform::mesh_t& msg) { return msg.data.size() > 8 ? msg.data[8] : -1; }
+
+// By default (--draco-speed 10) every published mesh is coded sequentially: the fastest to encode
+// on the output thread, and vertices keep the engine's order.
+TEST_F(NodeTest, MeshesAreCodedSequentiallyByDefault) {
+  SendAndProcess(frame_, 0);
+  node_->PublishStatusNow();
+  RequestMeshes();
+  ASSERT_GE(inbox_.meshes.size(), 2u);
+  std::set<int> kinds;
+  for (const auto& msg : inbox_.meshes) {
+    kinds.insert(msg.kind);
+    EXPECT_EQ(DracoMethod(msg), 0) << "kind " << int(msg.kind);
+    EXPECT_TRUE(MessageToMesh(msg).ok());
+  }
+  EXPECT_EQ(kinds, (std::set<int>{int(vdeform::mesh_t::KIND_LIVE), int(vdeform::mesh_t::KIND_CANONICAL)}));
+}
+
+// --draco-speed 7: the node's meshes decode with the counts they name (edgebreaker, or sequential
+// where it would change the marching-cubes mesh: DracoCodecTest covers both); out of 0..10 the
+// speed is refused.
+class EdgebreakerNodeTest : public NodeTest {
+ protected:
+  void SetUp() override {
+    options_.draco_speed = 7;
+    NodeTest::SetUp();
+  }
+};
+
+TEST_F(EdgebreakerNodeTest, MeshesDecodeAndTheSpeedIsBounded) {
+  SendAndProcess(frame_, 0);
+  RequestMeshes();
+  ASSERT_GE(inbox_.meshes.size(), 2u);
+  for (const auto& msg : inbox_.meshes) {
+    auto mesh = MessageToMesh(msg);
+    ASSERT_TRUE(mesh.ok()) << mesh.status().ToString();
+    EXPECT_EQ(int64_t(mesh->num_vertices()), int64_t(msg.num_vertices));
+    EXPECT_GT(mesh->num_triangles(), 1000u);
+  }
+  ServerOptions bad = options_;
+  for (int64_t speed : {-1, 11}) {
+    bad.draco_speed = speed;
+    EXPECT_NE(bad.Validate().ToString().find("--draco-speed"), std::string::npos) << speed;
+  }
 }
 
 // A node given an output key signs every mesh and status under it: each verifies, all carry the

@@ -117,6 +117,27 @@ TEST(DracoCodecTest, RoundTripWithinQuantisationBound) {
   }
 }
 
+// Speed 10 codes the connectivity sequentially (Draco's header byte 8: 0) and keeps the vertex
+// order; below 10 a manifold mesh takes edgebreaker (1), which reorders the vertices and is what
+// makes the messages small: the server's --draco-speed trades one for the other.
+TEST(DracoCodecTest, SpeedTenIsSequentialAndKeepsTheOrder) {
+  const TriangleMesh sphere = Sphere(40, 80, 0.5f, false);
+  DracoOptions fast, small;
+  fast.speed = 10;
+  small.speed = 7;
+  auto sequential = EncodeMeshDraco(sphere, fast);
+  auto edgebreaker = EncodeMeshDraco(sphere, small);
+  ASSERT_TRUE(sequential.ok() && edgebreaker.ok());
+  EXPECT_EQ((*sequential)[8], 0);
+  EXPECT_EQ((*edgebreaker)[8], 1);
+  EXPECT_LT(edgebreaker->size() * 3, sequential->size() * 2);
+  auto decoded = DecodeMeshDraco(sequential->data(), sequential->size());
+  ASSERT_TRUE(decoded.ok());
+  EXPECT_EQ(decoded->triangles, sphere.triangles);
+  ASSERT_EQ(decoded->positions.size(), sphere.positions.size());
+  for (size_t i = 0; i < sphere.positions.size(); ++i) EXPECT_NEAR(decoded->positions[i], sphere.positions[i], 1e-4f);
+}
+
 TEST(DracoCodecTest, CompressesWellBelowRawSize) {
   const TriangleMesh sphere = Sphere(40, 80, 0.5f, false);
   auto bytes = EncodeMeshDraco(sphere, {});
