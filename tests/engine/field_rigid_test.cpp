@@ -102,6 +102,7 @@ TEST(FieldRigidTest, AStaticFieldIsSolvedOnTheFineLevelAlone) {
     run.name = name;
     run.num_frames = frames;
     run.params.static_levels = static_levels;
+    run.params.static_solve_every = 1;
     auto e = test::EvaluateScene(run);
     EXPECT_TRUE(e.ok()) << e.status().ToString();
     return e.ok() ? e->solver_levels : std::vector<int>();
@@ -122,6 +123,46 @@ TEST(FieldRigidTest, AStaticFieldIsSolvedOnTheFineLevelAlone) {
   const std::vector<int> off = levels_of("rigid", 0, 12);
   ASSERT_EQ(off.size(), 12u);
   for (int k = 1; k < 12; ++k) EXPECT_EQ(off[k], 3) << "frame " << k;
+}
+
+// A static field is solved on every second frame by default (EngineParams::static_solve_every): the
+// frames between are fused and meshed, not solved (0 levels), and the rigid scene's field stays
+// as free of non-rigid motion as when every frame is solved; a deforming scene solves every frame.
+TEST(FieldRigidTest, AStaticFieldIsSolvedOnEveryNthFrame) {
+  if (!test::HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  const auto run_of = [](const char* name, int every, int frames) {
+    test::SceneRun run;
+    run.name = name;
+    run.num_frames = frames;
+    run.params.static_solve_every = every;
+    auto e = test::EvaluateScene(run);
+    EXPECT_TRUE(e.ok()) << e.status().ToString();
+    return e;
+  };
+  auto two = run_of("rigid", 2, 30);
+  ASSERT_TRUE(two.ok());
+  ASSERT_EQ(two->solver_levels.size(), 30u);
+  for (int k = 1; k <= 10; ++k) EXPECT_EQ(two->solver_levels[k], 3) << "frame " << k;
+  // Static from the 11th frame: unsolved, solved, unsolved, ...
+  for (int k = 11; k < 30; ++k) EXPECT_EQ(two->solver_levels[k], k % 2 == 0 ? 1 : 0) << "frame " << k;
+  auto three = run_of("rigid", 3, 17);
+  ASSERT_TRUE(three.ok());
+  for (int k = 11; k < 17; ++k) EXPECT_EQ(three->solver_levels[k], k % 3 == 1 ? 1 : 0) << "frame " << k;
+  auto every = run_of("rigid", 1, 30);
+  ASSERT_TRUE(every.ok());
+  for (int k = 11; k < 30; ++k) EXPECT_EQ(every->solver_levels[k], 1) << "frame " << k;
+  // The same quality as solving every frame (0.50 against 0.52 mm over 60 frames).
+  EXPECT_LE(two->last_nonrigid_mm, every->last_nonrigid_mm + 0.05);
+  EXPECT_LE(two->worst_surface_mm, 1.0);
+  auto tube = run_of("tube", 2, 16);
+  ASSERT_TRUE(tube.ok());
+  for (int k = 1; k < 16; ++k) EXPECT_EQ(tube->solver_levels[k], 3) << "frame " << k;
+
+  EngineParams bad;
+  for (int n : {0, 11}) {
+    bad.static_solve_every = n;
+    EXPECT_NE(bad.Validate().ToString().find("--static-solve-every"), std::string::npos) << n;
+  }
 }
 
 }  // namespace

@@ -95,6 +95,9 @@ void EngineParams::Bind(FlagParser* f) {
   f->Add("static-levels", &static_levels,
          "Levels of the solver's hierarchy while the field is static (its non-rigid part under half a voxel, "
          "measured every 10 frames; 0: always --levels)");
+  f->Add("static-solve-every", &static_solve_every,
+         "While the field is static, solve it on every n-th frame only; the frames between fuse through it as it "
+         "stands, track the camera and publish the mesh (1: every frame)");
   f->Add("k-min-new", &k_min_new,
          "... and grid points never fused before (space seen for the first time) only after this many (at least "
          "--k-min)");
@@ -200,6 +203,9 @@ Status EngineParams::Validate() const {
     return ParamOutOfBounds("EngineParams", "field_rigid_threshold", field_rigid_threshold, "0 <= threshold <= 1 m");
   if (!(static_levels >= 0 && static_levels <= 8))
     return ParamOutOfBounds("EngineParams", "static_levels", static_levels, "0 <= static_levels <= 8");
+  if (!(static_solve_every >= 1 && static_solve_every <= 10))
+    return ParamOutOfBounds("EngineParams", "static_solve_every", static_solve_every,
+                            "1 <= static_solve_every <= 10 (--static-solve-every)");
   if (!(k_min_new >= 0.f && k_min_new <= 100.f))
     return ParamOutOfBounds("EngineParams", "k_min_new", k_min_new, "0 <= k_min_new <= 100");
   if (!(carve_rate >= 0.f && carve_rate < 1.f))
@@ -521,6 +527,7 @@ void Engine::Reset() {
   frames_since_rigid_check_ = 0;
   frames_since_state_check_ = 0;
   field_static_ = false;
+  static_unsolved_ = 0;
   colour_check_.Clear();
   colour_verdict_.store(ColourRegistration::Verdict::kUndecided);
   history_.Clear();
@@ -965,18 +972,24 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
   return Status::Ok();
 }
 
-Status Engine::NonRigid(FrameResult* result) {
+Status Engine::NonRigid(FrameResult* result, bool solve) {
   // M from the surface extracted after the last frame; new members start from the field. A static
   // field is solved on fewer levels (EngineParams::static_levels).
   solver_->set_levels(field_static_ ? params_.static_levels : 0);
   if (bricks_) {
     VD_RETURN_IF_ERROR(PrepareBricks(result));
-    VD_RETURN_IF_ERROR(
-        solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, solved_));
   } else {
     const std::optional<SolveView> view = ViewToSolve();
     VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_, &solved_, view ? &*view : nullptr));
     VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
+  }
+  // Unsolved (EngineParams::static_solve_every), the frame still has this frame's active set: the
+  // fusion goes through it, and on bricks an older one could name slots evicted since.
+  if (!solve) return ctx_->Finish();
+  if (bricks_) {
+    VD_RETURN_IF_ERROR(
+        solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, solved_));
+  } else {
     VD_RETURN_IF_ERROR(solver_->Prepare(volume_, solved_));
   }
   const size_t pixels = static_cast<size_t>(cam_.width) * cam_.height;
@@ -1120,8 +1133,11 @@ StatusOr<FrameResult> Engine::Process(const RgbdFrame& frame) {
   } closer{this};
   SetPrefetchWindow(true);
   if (result.tracking_ok && nonrigid && params_.nonrigid_outer_iterations > 0) {
+    // A static field is solved on every static_solve_every-th frame (EngineParams).
+    const bool solve = !field_static_ || ++static_unsolved_ >= params_.static_solve_every;
+    if (solve) static_unsolved_ = 0;
     t0 = Clock::now();
-    VD_RETURN_IF_ERROR(NonRigid(&result));
+    VD_RETURN_IF_ERROR(NonRigid(&result, solve));
     result.times[Stage::kNonRigid] = MsSince(t0);
   }
   if (result.tracking_ok && sparse) {

@@ -121,6 +121,14 @@ struct EngineParams {
   // add low-frequency noise (rigid scene: non-rigid displacement 0.62 mm with 3 levels, 0.49 with
   // the fine level alone, and a quarter of the frame time). 0: always SolverParams::levels.
   int static_levels = 1;
+  // While the field is static, the non-rigid solve runs on every static_solve_every-th frame; the
+  // frames between still build their active set, fuse through the field as it stands, track the
+  // camera and publish the mesh. A static field has nothing to solve (its solve only keeps it
+  // static), and a scene that starts to deform is found by the same measurement within
+  // kFieldStateInterval frames (the bend's slow start, static on frames 12-21: drift 7.26 -> 7.27
+  // mm). Rigid scene: non-rigid stage ~60 -> ~36 ms a frame, displacement 0.52 -> 0.50 mm
+  // (docs/BENCHMARKS.md "Session 34"). 1: every frame.
+  int static_solve_every = 2;
   // ... and points never fused before (new space: weight 0) only after this many. Measured on the
   // long bend (docs/BENCHMARKS.md "Long takes"): new geometry fused after 3 optimisations, as the
   // paper's K_min, is the duplicated surface section 8 warns of, grown at the parts that turn.
@@ -333,7 +341,8 @@ class Engine {
   Status Track(FrameResult* result);
   Status ExtractMesh(FrameResult* result);
   Status ExtractTracked(FrameResult* result);
-  Status NonRigid(FrameResult* result);
+  // The frame's active set, then (solve) its correspondences and the solve.
+  Status NonRigid(FrameResult* result, bool solve);
   // Moves the rigid part of the field into the camera pose once it exceeds
   // EngineParams::field_rigid_threshold (the deformed surface stays where the camera sees it), and
   // decides from the same measurement whether the field is static (EngineParams::static_levels).
@@ -364,6 +373,8 @@ class Engine {
   // solve then uses EngineParams::static_levels; Reset and a resume start as deforming).
   int frames_since_state_check_ = 0;
   bool field_static_ = false;
+  // Frames in a row whose static field was not solved (EngineParams::static_solve_every).
+  int static_unsolved_ = 0;
   // The colour's registration, measured on the first frames of a model (Reset starts again), and
   // its verdict for Preprocess on the prefetch thread.
   ColourRegistration colour_check_;
