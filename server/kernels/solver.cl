@@ -187,9 +187,10 @@ void vd_pcg_group_sums(__local float* buf, const float* v, int n, __global float
 /* w = A u from the cached blocks and the group sums of (r.u, w.u, r.r): the product and the
  * iteration's one reduction in one pass. */
 __kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_apply_dots_kernel(
-    __global const float* blocks, __global const int* nbr, __global const float4* r, __global const float4* u,
-    __global float4* w, __global float* partials, int vd_items) {
+    __global const float* scal, __global const float* blocks, __global const int* nbr, __global const float4* r,
+    __global const float4* u, __global float4* w, __global float* partials, int vd_items) {
   __local float buf[3 * VD_PCG_GROUP];
+  if (vd_pcg_done(scal)) return; /* the same for every item: no barrier is left waiting */
   int k = get_global_id(0);
   float v[3] = {0.0f, 0.0f, 0.0f};
   if (k < vd_items) {
@@ -231,6 +232,7 @@ __kernel __attribute__((reqd_work_group_size(VD_PCG_GROUP, 1, 1))) void vd_pcg_c
     __global float4* s, __global float4* x, __global float4* r, __global float4* u, __global float* partials,
     int vd_items) {
   __local float buf[VD_PCG_GROUP];
+  if (vd_pcg_done(scal)) return; /* the same for every item */
   int k = get_global_id(0);
   float rr = 0.0f;
   if (k < vd_items) rr = vd_pcg_cg_update(k, scal, diag_inv, w, p, s, x, r, u);

@@ -580,6 +580,11 @@ VD_INLINE void vd_pcg_scalars(VD_GLOBAL const float* partials, int groups, int m
   if (!go) scal[VD_PCG_CONVERGED] = 1.0f;
 }
 
+/* Whether the PCG has converged (or broken down): the host learns it one iteration late (it queues
+ * the next product and update before it reads the test), so those are skipped on the device: the
+ * product and the update return at once, leaving x, r, w and the partial sums as they were. */
+VD_INLINE int vd_pcg_done(VD_GLOBAL const float* scal) { return scal[VD_PCG_CONVERGED] != 0.0f; }
+
 /* One update at point k (xyz; alpha and beta from scal): p = u + beta p, s = w + beta s,
  * x += alpha p, r -= alpha s, u = M^-1 r; returns the new r.r term. At the start (beta 0) p and s
  * are not read. */

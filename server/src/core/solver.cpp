@@ -221,7 +221,7 @@ Status DeviceSolver::Apply(const ocl::Buffer<vd_float4>& d, ocl::Buffer<vd_float
 
 Status DeviceSolver::ApplyDots() {
   ocl::Context& ctx = ops_->ctx();
-  if (cache_btb_) return ocl::PcgApplyDots(ctx, m_, btb_, btb_nbr_, r_, u_, w_, partials_);
+  if (cache_btb_) return ocl::PcgApplyDots(ctx, m_, scal_, btb_, btb_nbr_, r_, u_, w_, partials_);
   VD_RETURN_IF_ERROR(Apply(u_, w_));
   return ocl::PcgDots(ctx, m_, r_, u_, w_, partials_);
 }
@@ -255,18 +255,23 @@ StatusOr<int> DeviceSolver::PositionStep() {
   VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(bb_partials), VD_PCG_SET_STOP, tol, scal_));
   VD_RETURN_IF_ERROR(ApplyDots());
   VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_START, tol, scal_));
-  float scal[VD_PCG_SCALARS];
+  // The host reads each convergence test while the device already runs the next product and
+  // update, queued behind the read: if the test says converged, they return at once on the
+  // device (vd_pcg_done), so x ends where the one-round-trip-per-iteration loop left it, and the
+  // device never waits for the host between iterations.
   int it = 0;
-  VD_RETURN_IF_ERROR(ctx.Download(scal_, scal, VD_PCG_SCALARS));
-  while (it < params_.pcg_iterations && scal[VD_PCG_CONVERGED] == 0.f) {
-    VD_RETURN_IF_ERROR(ocl::PcgCgUpdate(ctx, m_, scal_, diag_inv_, w_, p_, s_, x_, r_, u_, partials_));
-    ++it;
-    if (it == params_.pcg_iterations) break;  // no further update would use the next product
+  ocl::PendingRead test;
+  VD_RETURN_IF_ERROR(ctx.DownloadAsync(scal_, scal_host_.data(), VD_PCG_SCALARS, &test));
+  VD_RETURN_IF_ERROR(ocl::PcgCgUpdate(ctx, m_, scal_, diag_inv_, w_, p_, s_, x_, r_, u_, partials_));
+  for (;;) {
+    VD_RETURN_IF_ERROR(ctx.Wait(&test));
+    if (scal_host_[VD_PCG_CONVERGED] != 0.f) break;  // the update queued last did nothing
+    if (++it == params_.pcg_iterations) break;        // no further update would use the next product
     VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_RR, tol, scal_));
-    VD_RETURN_IF_ERROR(ctx.Download(scal_, scal, VD_PCG_SCALARS));
-    if (scal[VD_PCG_CONVERGED] != 0.f) break;
+    VD_RETURN_IF_ERROR(ctx.DownloadAsync(scal_, scal_host_.data(), VD_PCG_SCALARS, &test));
     VD_RETURN_IF_ERROR(ApplyDots());
     VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_NEXT, tol, scal_));
+    VD_RETURN_IF_ERROR(ocl::PcgCgUpdate(ctx, m_, scal_, diag_inv_, w_, p_, s_, x_, r_, u_, partials_));
   }
   return it;
 }

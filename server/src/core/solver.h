@@ -3,6 +3,7 @@
 // by Procrustes, positions by Jacobi-preconditioned conjugate gradients on
 // (2 w_r L + w_d B^T B + lambda I) x = b, B^T B applied on the fly from constraints grouped by
 // cell (shared/solver.h). Caller-owned buffers are reused: nothing is allocated once warm.
+#include <array>
 #include <cstdint>
 
 #include "ocl/device_ops.h"
@@ -206,6 +207,9 @@ class DeviceSolver {
   std::vector<float> partials_host_;
   // The PCG scalars (shared/solver.h VD_PCG_*): step sizes kept on the device between kernels.
   ocl::Buffer<float> scal_;
+  // The host's copy of scal_, read behind queued work (PositionStep): a member, so it outlives
+  // any read still in flight when a step returns early.
+  std::array<float, VD_PCG_SCALARS> scal_host_{};
 };
 
 }  // namespace vd

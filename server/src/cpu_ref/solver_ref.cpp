@@ -64,8 +64,9 @@ void GroupSums(const std::vector<float>& values, int m, int n, float* partials) 
 }
 }  // namespace
 
-void PcgApplyDots(const float* blocks, const int* nbr, const vd_float4* r, const vd_float4* u, int m, vd_float4* w,
-                  float* partials) {
+void PcgApplyDots(const float* scal, const float* blocks, const int* nbr, const vd_float4* r, const vd_float4* u, int m,
+                  vd_float4* w, float* partials) {
+  if (vd_pcg_done(scal)) return;
   std::vector<float> v(3 * size_t(m));
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k) {
@@ -84,6 +85,7 @@ void PcgDots(const vd_float4* r, const vd_float4* u, const vd_float4* w, int m, 
 
 void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, int m, vd_float4* p, vd_float4* s,
                  vd_float4* x, vd_float4* r, vd_float4* u, float* partials) {
+  if (vd_pcg_done(scal)) return;
   std::vector<float> v(m);
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k) v[k] = vd_pcg_cg_update(k, scal, diag_inv, w, p, s, x, r, u);

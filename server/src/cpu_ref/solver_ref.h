@@ -29,8 +29,9 @@ void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, 
 // The PCG's passes (shared/solver.h, the Chronopoulos/Gear form) over m points, with partial sums
 // per group of VD_PCG_GROUP points added in the kernels' order: w = A u with the triples
 // (r.u, w.u, r.r); the update with the singles of the new r.r; the scalars from the partials.
-void PcgApplyDots(const float* blocks, const int* nbr, const vd_float4* r, const vd_float4* u, int m, vd_float4* w,
-                  float* partials);
+// The product and the update do nothing once scal says the PCG converged (vd_pcg_done).
+void PcgApplyDots(const float* scal, const float* blocks, const int* nbr, const vd_float4* r, const vd_float4* u, int m,
+                  vd_float4* w, float* partials);
 void PcgDots(const vd_float4* r, const vd_float4* u, const vd_float4* w, int m, float* partials);
 void PcgCgUpdate(const float* scal, const VdMat3* diag_inv, const vd_float4* w, int m, vd_float4* p, vd_float4* s,
                  vd_float4* x, vd_float4* r, vd_float4* u, float* partials);

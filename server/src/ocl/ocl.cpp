@@ -424,6 +424,15 @@ Status Context::Enqueue(cl_kernel k, const char* name, size_t work_items, size_t
   return Status::Ok();
 }
 
+Status Context::Wait(PendingRead* pending) {
+  if (!pending->pending()) return Status::Ok();
+  const cl_int err = clWaitForEvents(1, &pending->event_);
+  clReleaseEvent(pending->event_);
+  pending->event_ = nullptr;
+  if (err != CL_SUCCESS) return ClError(err, "clWaitForEvents", __FILE__, __LINE__);
+  return Status::Ok();
+}
+
 Status Context::Finish() {
   VD_CL_CHECK(clFinish(queue_));
   return Status::Ok();

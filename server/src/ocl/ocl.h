@@ -99,6 +99,34 @@ class Buffer {
   size_t* counter_ = nullptr;
 };
 
+// A download queued without waiting (Context::DownloadAsync); Context::Wait blocks until it is
+// done. Move-only: it owns its OpenCL event, and destroying (or replacing) it waits for the
+// download too, so the host memory it writes never outlives it unnoticed.
+class PendingRead {
+ public:
+  PendingRead() = default;
+  PendingRead(PendingRead&& o) noexcept : event_(o.event_) { o.event_ = nullptr; }
+  PendingRead& operator=(PendingRead&& o) noexcept {
+    Release();
+    std::swap(event_, o.event_);
+    return *this;
+  }
+  PendingRead(const PendingRead&) = delete;
+  PendingRead& operator=(const PendingRead&) = delete;
+  ~PendingRead() { Release(); }
+  bool pending() const { return event_ != nullptr; }
+
+ private:
+  void Release() {
+    if (!event_) return;
+    clWaitForEvents(1, &event_);
+    clReleaseEvent(event_);
+    event_ = nullptr;
+  }
+  friend class Context;
+  cl_event event_ = nullptr;
+};
+
 class Context {
  public:
   // device_spec: "" (first GPU, else first CPU device), an index into ListDevices(), or a
@@ -150,6 +178,21 @@ class Context {
     VD_CL_CHECK(clEnqueueReadBuffer(queue_, b.mem(), CL_TRUE, offset * sizeof(T), n * sizeof(T), data, 0, nullptr, nullptr));
     return Status::Ok();
   }
+  // Queues a download and returns at once: the host can queue more work behind it and then Wait,
+  // which returns when the commands before the download and the download are done, while the
+  // device goes on with the rest (a host round trip without idling the device). `data` must stay
+  // valid until Wait (or until `pending` is destroyed, which waits too).
+  template <typename T>
+  Status DownloadAsync(const Buffer<T>& b, T* data, size_t n, PendingRead* pending) {
+    if (n > b.size()) return OutOfRange("download past the end of a device buffer");
+    *pending = PendingRead();
+    if (n == 0) return Status::Ok();
+    VD_CL_CHECK(clEnqueueReadBuffer(queue_, b.mem(), CL_FALSE, 0, n * sizeof(T), data, 0, nullptr, &pending->event_));
+    VD_CL_CHECK(clFlush(queue_));
+    return Status::Ok();
+  }
+  // Blocks until `pending`'s download is done (no-op when none is pending).
+  Status Wait(PendingRead* pending);
   template <typename T>
   Status Fill(Buffer<T>& b, const T& value, size_t n, size_t offset = 0) {
     if (offset + n > b.size()) return OutOfRange("fill past the end of a device buffer");

@@ -145,10 +145,10 @@ Status PcgScalars(Context& ctx, const Buffer<float>& partials, int groups, int m
 // The group reductions assume the launch's work-groups are VD_PCG_GROUP items (reqd_work_group_size).
 static_assert(Context::kGroupSize == VD_PCG_GROUP);
 
-Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
-                    const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, Buffer<vd_float4>& w,
-                    Buffer<float>& partials) {
-  return kPcgApplyDots(ctx, m, blocks, nbr, r, u, w, partials);
+Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& scal, const Buffer<float>& blocks,
+                    const Buffer<int32_t>& nbr, const Buffer<vd_float4>& r, const Buffer<vd_float4>& u,
+                    Buffer<vd_float4>& w, Buffer<float>& partials) {
+  return kPcgApplyDots(ctx, m, scal, blocks, nbr, r, u, w, partials);
 }
 
 Status PcgStart(Context& ctx, size_t m, float spacing, const Buffer<int32_t>& neighbours, const Buffer<float>& edge_w,

@@ -82,8 +82,9 @@ inline constexpr Kernel<void(const Buffer<vd_float4>& a, const Buffer<vd_float4>
 inline constexpr Kernel<void(const Buffer<float>& partials, int groups, int mode, float tolerance,
                              Buffer<float>& scal)> kPcgScalars{"vd_pcg_scalars_kernel"};
 // Work-groups of VD_PCG_GROUP points, one triple of partial sums (r.u, w.u, r.r) each.
-inline constexpr Kernel<void(const Buffer<float>& blocks, const Buffer<int32_t>& nbr, const Buffer<vd_float4>& r,
-                             const Buffer<vd_float4>& u, Buffer<vd_float4>& w, Buffer<float>& partials)>
+inline constexpr Kernel<void(const Buffer<float>& scal, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+                             const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, Buffer<vd_float4>& w,
+                             Buffer<float>& partials)>
     kPcgApplyDots{"vd_pcg_apply_dots_kernel"};
 inline constexpr Kernel<void(const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, const Buffer<vd_float4>& w,
                              Buffer<float>& partials)>
@@ -191,8 +192,10 @@ Status DotPartials(Context& ctx, size_t groups, const Buffer<vd_float4>& a, cons
 Status PcgScalars(Context& ctx, const Buffer<float>& partials, int groups, int mode, float tolerance,
                   Buffer<float>& scal);
 // w = A u over m points from the cached blocks, with the triples (r.u, w.u, r.r) of each
-// work-group of VD_PCG_GROUP points in partials (PcgGroups(m) of them).
-Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& blocks, const Buffer<int32_t>& nbr,
+// work-group of VD_PCG_GROUP points in partials (PcgGroups(m) of them); nothing once scal says
+// the PCG converged (vd_pcg_done).
+Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& scal, const Buffer<float>& blocks,
+                    const Buffer<int32_t>& nbr,
                     const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, Buffer<vd_float4>& w,
                     Buffer<float>& partials);
 // The same triples for a w = A u computed before.
@@ -207,7 +210,8 @@ Status PcgStart(Context& ctx, size_t m, float spacing, const Buffer<int32_t>& ne
 // Partial-sum triples of PcgApplyDots and PcgDots for m points.
 inline size_t PcgGroups(size_t m) { return (m + VD_PCG_GROUP - 1) / VD_PCG_GROUP; }
 // p = u + beta p, s = w + beta s, x += alpha p, r -= alpha s, u = M^-1 r over m points, alpha and
-// beta from scal, with the partial sums of the new r.r per work-group (PcgGroups(m) of them).
+// beta from scal, with the partial sums of the new r.r per work-group (PcgGroups(m) of them);
+// nothing once scal says the PCG converged.
 Status PcgCgUpdate(Context& ctx, size_t m, const Buffer<float>& scal, const Buffer<VdMat3>& diag_inv,
                    const Buffer<vd_float4>& w, Buffer<vd_float4>& p, Buffer<vd_float4>& s, Buffer<vd_float4>& x,
                    Buffer<vd_float4>& r, Buffer<vd_float4>& u, Buffer<float>& partials);
