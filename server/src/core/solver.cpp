@@ -266,7 +266,7 @@ StatusOr<int> DeviceSolver::PositionStep() {
   for (;;) {
     VD_RETURN_IF_ERROR(ctx.Wait(&test));
     if (scal_host_[VD_PCG_CONVERGED] != 0.f) break;  // the update queued last did nothing
-    if (++it == params_.pcg_iterations) break;        // no further update would use the next product
+    if (++it == params_.pcg_iterations) break;       // no further update would use the next product
     VD_RETURN_IF_ERROR(ocl::PcgScalars(ctx, partials_, int(groups), VD_PCG_SET_RR, tol, scal_));
     VD_RETURN_IF_ERROR(ctx.DownloadAsync(scal_, scal_host_.data(), VD_PCG_SCALARS, &test));
     VD_RETURN_IF_ERROR(ApplyDots());

@@ -195,9 +195,8 @@ Status PcgScalars(Context& ctx, const Buffer<float>& partials, int groups, int m
 // work-group of VD_PCG_GROUP points in partials (PcgGroups(m) of them); nothing once scal says
 // the PCG converged (vd_pcg_done).
 Status PcgApplyDots(Context& ctx, size_t m, const Buffer<float>& scal, const Buffer<float>& blocks,
-                    const Buffer<int32_t>& nbr,
-                    const Buffer<vd_float4>& r, const Buffer<vd_float4>& u, Buffer<vd_float4>& w,
-                    Buffer<float>& partials);
+                    const Buffer<int32_t>& nbr, const Buffer<vd_float4>& r, const Buffer<vd_float4>& u,
+                    Buffer<vd_float4>& w, Buffer<float>& partials);
 // The same triples for a w = A u computed before.
 Status PcgDots(Context& ctx, size_t m, const Buffer<vd_float4>& r, const Buffer<vd_float4>& u,
                const Buffer<vd_float4>& w, Buffer<float>& partials);
