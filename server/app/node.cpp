@@ -370,7 +370,8 @@ class Node::Impl {
     TriangleMesh& live_mesh = result->live_mesh;
     if (result->canonical_mesh.positions.size() == live_mesh.positions.size())
       live_mesh.canonical = result->canonical_mesh.positions;
-    auto live = MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE, vdeform::mesh_t::ENCODING_DRACO, draco_);
+    auto live =
+        MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE, vdeform::mesh_t::ENCODING_DRACO, draco_);
     if (live.ok()) return std::move(live).value();
     VD_LOG_WARNING << "cannot encode live mesh: " << live.status().ToString();
     return std::nullopt;
@@ -387,8 +388,8 @@ class Node::Impl {
   // Encodes the newest canonical mesh if it is not yet (mutex_ held).
   void EncodeCanonical() {
     if (!canonical_pending_) return;
-    auto canonical = MeshToMessage(*canonical_pending_, NowUs(), canonical_pending_seq_, vdeform::mesh_t::KIND_CANONICAL,
-                                   vdeform::mesh_t::ENCODING_DRACO, draco_);
+    auto canonical = MeshToMessage(*canonical_pending_, NowUs(), canonical_pending_seq_,
+                                   vdeform::mesh_t::KIND_CANONICAL, vdeform::mesh_t::ENCODING_DRACO, draco_);
     if (canonical.ok()) last_canonical_ = std::move(canonical).value();
     else VD_LOG_WARNING << "cannot encode canonical mesh: " << canonical.status().ToString();
     canonical_pending_.reset();
@@ -465,7 +466,8 @@ class Node::Impl {
   // names the frame), kept for REQUEST_MESH and, with --save-dir, written numbered by the frame's
   // sequence number (the node has no source index).
   void OutputTracked(const TriangleMesh& tracked, int64_t seq) {
-    auto msg = MeshToMessage(tracked, NowUs(), seq, vdeform::mesh_t::KIND_TRACKED, vdeform::mesh_t::ENCODING_DRACO, draco_);
+    auto msg =
+        MeshToMessage(tracked, NowUs(), seq, vdeform::mesh_t::KIND_TRACKED, vdeform::mesh_t::ENCODING_DRACO, draco_);
     if (msg.ok()) {
       std::lock_guard<std::mutex> lock(mutex_);
       last_tracked_ = std::move(msg).value();

@@ -91,7 +91,8 @@ Status ServerOptions::Validate() const {
     return ParamOutOfBounds("ServerOptions", "checkpoint_interval", checkpoint_interval, ">= 0 s (--checkpoint-interval)");
   VD_RETURN_IF_ERROR(gate.Validate());
   if (draco_speed < 0 || draco_speed > 10)
-    return ParamOutOfBounds("ServerOptions", "draco_speed", static_cast<double>(draco_speed), "0 <= draco_speed <= 10 (--draco-speed)");
+    return ParamOutOfBounds("ServerOptions", "draco_speed", static_cast<double>(draco_speed),
+                            "0 <= draco_speed <= 10 (--draco-speed)");
   if (resume && checkpoint_dir.empty()) return InvalidArgument("--resume needs --checkpoint DIR");
   return Status::Ok();
 }

@@ -2,26 +2,26 @@
 // reason and never reach the model, good frames are processed and answered with meshes and
 // status, stale frames are ignored, snapshot paths stay inside the snapshot directory and the
 // snapshot's model is a checkpoint, a signal stops serving without an error.
-#include <chrono>
+#include "node.h"
 
 #include <gtest/gtest.h>
 #include <pthread.h>
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <filesystem>
 #include <set>
 #include <thread>
 
+#include "../support/temp_dir.h"
 #include "core/checkpoint.h"
-#include "node.h"
 #include "ocl/ocl.h"
 #include "snapshot.h"
-#include "vd/common/output_auth.h"
 #include "vd/capture/synthetic.h"
-#include "../support/temp_dir.h"
+#include "vd/common/output_auth.h"
 
 namespace vd {
 namespace {
