@@ -53,9 +53,7 @@ class Node::Impl {
         engine_(std::move(engine)),
         gate_(std::move(gate)),
         output_key_(std::move(output_key)),
-        scheduler_(!options.checkpoint_dir.empty(), options.checkpoint_interval, Clock::now()) {
-    draco_.speed = static_cast<int>(options.draco_speed);
-  }
+        scheduler_(!options.checkpoint_dir.empty(), options.checkpoint_interval, Clock::now()) {}
 
   void OnFrame(const lcm::ReceiveBuffer* rbuf) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -370,8 +368,8 @@ class Node::Impl {
     TriangleMesh& live_mesh = result->live_mesh;
     if (result->canonical_mesh.positions.size() == live_mesh.positions.size())
       live_mesh.canonical = result->canonical_mesh.positions;
-    auto live =
-        MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE, vdeform::mesh_t::ENCODING_DRACO, draco_);
+    auto live = MeshToMessage(live_mesh, NowUs(), seq, vdeform::mesh_t::KIND_LIVE, vdeform::mesh_t::ENCODING_DRACO,
+                              PublishedMeshDraco(options_, live_mesh.num_triangles()));
     if (live.ok()) return std::move(live).value();
     VD_LOG_WARNING << "cannot encode live mesh: " << live.status().ToString();
     return std::nullopt;
@@ -389,7 +387,8 @@ class Node::Impl {
   void EncodeCanonical() {
     if (!canonical_pending_) return;
     auto canonical = MeshToMessage(*canonical_pending_, NowUs(), canonical_pending_seq_,
-                                   vdeform::mesh_t::KIND_CANONICAL, vdeform::mesh_t::ENCODING_DRACO, draco_);
+                                   vdeform::mesh_t::KIND_CANONICAL, vdeform::mesh_t::ENCODING_DRACO,
+                                   PublishedMeshDraco(options_, canonical_pending_->num_triangles()));
     if (canonical.ok()) last_canonical_ = std::move(canonical).value();
     else VD_LOG_WARNING << "cannot encode canonical mesh: " << canonical.status().ToString();
     canonical_pending_.reset();
@@ -466,8 +465,8 @@ class Node::Impl {
   // names the frame), kept for REQUEST_MESH and, with --save-dir, written numbered by the frame's
   // sequence number (the node has no source index).
   void OutputTracked(const TriangleMesh& tracked, int64_t seq) {
-    auto msg =
-        MeshToMessage(tracked, NowUs(), seq, vdeform::mesh_t::KIND_TRACKED, vdeform::mesh_t::ENCODING_DRACO, draco_);
+    auto msg = MeshToMessage(tracked, NowUs(), seq, vdeform::mesh_t::KIND_TRACKED, vdeform::mesh_t::ENCODING_DRACO,
+                             PublishedMeshDraco(options_, tracked.num_triangles()));
     if (msg.ok()) {
       std::lock_guard<std::mutex> lock(mutex_);
       last_tracked_ = std::move(msg).value();
@@ -586,8 +585,6 @@ class Node::Impl {
 
   // Borrowed from the caller, which validated them once at start-up.
   const ServerOptions& options_;
-  // How published meshes are encoded (--draco-speed).
-  DracoOptions draco_;
   const StreamChannels channels_;
   // Borrowed from the caller; publishing is thread-safe in LCM.
   lcm::LCM* lcm_;

@@ -97,6 +97,13 @@ Status ServerOptions::Validate() const {
   return Status::Ok();
 }
 
+DracoOptions PublishedMeshDraco(const ServerOptions& options, size_t triangles) {
+  DracoOptions draco;
+  draco.speed = static_cast<int>(options.draco_speed);
+  if (triangles > kSequentialMaxTriangles) draco.speed = std::min(draco.speed, 7);
+  return draco;
+}
+
 Status ApplyTrackMesh(const ServerOptions& options, Engine* engine) {
   if (!options.tracks_mesh()) return Status::Ok();
   TriangleMesh given;

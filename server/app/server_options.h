@@ -3,6 +3,7 @@
 #include <string>
 
 #include "core/engine.h"
+#include "vd/common/codecs.h"
 #include "vd/common/flags.h"
 #include "gate.h"
 
@@ -50,7 +51,7 @@ struct ServerOptions {
   // Every mesh and status message signed under the key in this file (one line KEY), so viewers and
   // lockstep captures given it take only what this server sent; empty = the output goes unsigned.
   std::string output_key_file;
-  // Draco speed of the published meshes (DracoOptions::speed). 10, sequential connectivity, encodes
+  // Draco speed of the published meshes (DracoOptions::speed; PublishedMeshDraco). 10, sequential connectivity, encodes
   // the tube's 27 k triangles in ~3.5 ms against 6-10 ms for edgebreaker (7), which also falls back
   // to sequential on about half of the marching-cubes meshes (non-manifold vertices): the output
   // thread shares the two cores with the solve, so the fast one is the default (live 30 Hz: 73-80
@@ -71,6 +72,12 @@ struct ServerOptions {
 // --track-mesh / --track-mesh-from: turns on the engine's tracked mesh (reading the PLY); nothing
 // when neither is given. Errors name the flag.
 Status ApplyTrackMesh(const ServerOptions& options, Engine* engine);
+// How a published mesh of `triangles` triangles is Draco-coded: at --draco-speed, except that a
+// mesh over kSequentialMaxTriangles takes edgebreaker (speed at most 7) whatever the flag, so a
+// room-scale mesh stays well inside the receivers' 4 MB buffers (sequential: ~10.6 bytes a
+// triangle, 1.6 MB at the limit; edgebreaker ~4.3).
+inline constexpr size_t kSequentialMaxTriangles = 150000;
+DracoOptions PublishedMeshDraco(const ServerOptions& options, size_t triangles);
 // DIR/frame-%06d.SUFFIX: the per-frame files --save-dir holds.
 std::string FramePath(const std::string& dir, int64_t index, const char* suffix);
 

@@ -29,6 +29,12 @@ __kernel void vd_solver_scatter_state(__global const int* list, __global const f
   def_rot[i] = rot[k];
 }
 
+/* vd_count_optimisation for each listed point. */
+__kernel void vd_solver_count_state(__global const int* list, __global float4* def_pos, int vd_items) {
+  if ((int)get_global_id(0) >= vd_items) return;
+  vd_count_optimisation(get_global_id(0), list, def_pos);
+}
+
 /* Counting sort of the per-pixel constraints by cell: count, then (after a scan) scatter. */
 __kernel void vd_constraint_count(__global const VdCorrespondence* corr, __global const int* compact, VdVolume vol,
                                   __global int* cell_of, __global uint* counts, int vd_items) {

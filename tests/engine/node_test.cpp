@@ -360,6 +360,18 @@ TEST_F(NodeTest, MeshesAreCodedSequentiallyByDefault) {
   EXPECT_EQ(kinds, (std::set<int>{int(vdeform::mesh_t::KIND_LIVE), int(vdeform::mesh_t::KIND_CANONICAL)}));
 }
 
+// --draco-speed applies up to kSequentialMaxTriangles; a larger (room-scale) mesh takes
+// edgebreaker at speed 7 at most, so its message stays inside the receivers' buffers.
+TEST(PublishedMeshDracoTest, LargeMeshesTakeEdgebreaker) {
+  ServerOptions o;
+  EXPECT_EQ(PublishedMeshDraco(o, 30000).speed, 10);
+  EXPECT_EQ(PublishedMeshDraco(o, kSequentialMaxTriangles).speed, 10);
+  EXPECT_EQ(PublishedMeshDraco(o, kSequentialMaxTriangles + 1).speed, 7);
+  o.draco_speed = 3;
+  EXPECT_EQ(PublishedMeshDraco(o, 30000).speed, 3);
+  EXPECT_EQ(PublishedMeshDraco(o, 1000000).speed, 3);
+}
+
 // --draco-speed 7: the node's meshes decode with the counts they name (edgebreaker, or sequential
 // where it would change the marching-cubes mesh: DracoCodecTest covers both); out of 0..10 the
 // speed is refused.

@@ -35,8 +35,9 @@ struct TakeWindow {
 
 struct SceneErrors {
   double worst_surface_mm = 0, mean_surface_mm = 0, last_drift_mm = 0, last_nonrigid_mm = 0;
-  // The canonical model's truth at the last frame (as in TakeWindow).
+  // The canonical model's truth at the last frame (as in TakeWindow), and its vertex count there.
   double canonical_within_5mm = 0, canonical_p90_mm = 0;
+  size_t canonical_vertices = 0;
   // With SceneRun::track_mesh: the tracked mesh's vertex count (constant) and the mean distance of
   // its vertices to their material points' true positions at the last frame.
   size_t tracked_vertices = 0;
@@ -237,6 +238,7 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
                     out.last_nonrigid_mm);
       if (report || k == last)
         CanonicalTruth(r.canonical_mesh, gt0, &out.canonical_within_5mm, &out.canonical_p90_mm);
+      if (k == last) out.canonical_vertices = r.canonical_mesh.num_vertices();
       if (k == last && !run.save_canonical.empty()) {
         TriangleMesh coloured = r.canonical_mesh;
         CanonicalErrorColours(&coloured, gt0);

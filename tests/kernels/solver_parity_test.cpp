@@ -178,6 +178,27 @@ StatusOr<DeviceSystem> BuildOnDevice(ocl::Context* ctx, const Problem& p, const 
 }
 
 // vd_sort_indices against std::sort over the sizes both of its branches take, repeats included.
+// An unsolved frame's count (vd_solver_count_state): the listed points' w grows by one on the
+// device as in the CPU reference, their positions and every unlisted point stay.
+TEST(SolverParityTest, CountOptimisationCountsOnlyTheListedPoints) {
+  VD_REQUIRE_OCL(ctx);
+  const int n = 1000;
+  std::vector<vd_float4> def_pos(n);
+  for (int i = 0; i < n; ++i) def_pos[i] = VD_F4(0.001f * i, -0.002f * i, 0.5f, float(i % 7));
+  std::vector<int32_t> list;
+  for (int i = 3; i < n; i += 3) list.push_back(i);
+  auto d_list = ToDevice(ctx, list);
+  auto d_pos = ToDevice(ctx, def_pos);
+  ASSERT_TRUE(ocl::CountOptimisation(*ctx, list.size(), d_list, d_pos).ok());
+  std::vector<vd_float4> want = def_pos;
+  cpu::CountOptimisation(list.data(), int(list.size()), want.data());
+  EXPECT_EQ(Flatten(FromDevice(ctx, d_pos, n)), Flatten(want));
+  for (int i = 0; i < n; ++i) {
+    EXPECT_EQ(want[i].x, def_pos[i].x);
+    EXPECT_EQ(want[i].w, def_pos[i].w + (i % 3 == 0 && i > 0 ? 1.f : 0.f)) << i;
+  }
+}
+
 TEST(SolverParityTest, SortIndicesSortsAsStdSortDoes) {
   std::mt19937 rng(7);
   for (int n = 0; n <= 90; ++n) {

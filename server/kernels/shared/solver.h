@@ -580,6 +580,14 @@ VD_INLINE void vd_pcg_scalars(VD_GLOBAL const float* partials, int groups, int m
   if (!go) scal[VD_PCG_CONVERGED] = 1.0f;
 }
 
+/* An unsolved frame of a static field (EngineParams::static_solve_every) counts for the point the
+ * solve would have written back (list entry k) as an optimisation that left it where it was: the
+ * count in w grows by one, as vd_solver_scatter_state's does, so fusion (k_min, k_min_new) starts
+ * as early as when every frame is solved. */
+VD_INLINE void vd_count_optimisation(int k, VD_GLOBAL const int* list, VD_GLOBAL vd_float4* def_pos) {
+  def_pos[list[k]].w += 1.0f;
+}
+
 /* Whether the PCG has converged (or broken down): the host learns it one iteration late (it queues
  * the next product and update before it reads the test), so those are skipped on the device: the
  * product and the update return at once, leaving x, r, w and the partial sums as they were. */

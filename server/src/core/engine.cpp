@@ -96,8 +96,9 @@ void EngineParams::Bind(FlagParser* f) {
          "Levels of the solver's hierarchy while the field is static (its non-rigid part under half a voxel, "
          "measured every 10 frames; 0: always --levels)");
   f->Add("static-solve-every", &static_solve_every,
-         "While the field is static, solve it on every n-th frame only; the frames between fuse through it as it "
-         "stands, track the camera and publish the mesh (1: every frame)");
+         "While the field is static (measured as for --static-levels, which must be above 0), solve it on every n-th "
+         "frame only; the frames between fuse through it as it stands, track the camera and publish the mesh (1: "
+         "every frame)");
   f->Add("k-min-new", &k_min_new,
          "... and grid points never fused before (space seen for the first time) only after this many (at least "
          "--k-min)");
@@ -983,9 +984,27 @@ Status Engine::NonRigid(FrameResult* result, bool solve) {
     VD_RETURN_IF_ERROR(ops_.BuildActiveSet(volume_, &active_, &solved_, view ? &*view : nullptr));
     VD_RETURN_IF_ERROR(ops_.Extrapolate(volume_, active_));
   }
-  // Unsolved (EngineParams::static_solve_every), the frame still has this frame's active set: the
-  // fusion goes through it, and on bricks an older one could name slots evicted since.
-  if (!solve) return ctx_->Finish();
+  // Unsolved (EngineParams::static_solve_every), the frame still has this frame's active set (the
+  // fusion goes through it, and on bricks an older one could name slots evicted since) and this
+  // frame's raster of the model (the features' lifting and the bricks' growth read it, by the
+  // triangle ids of the mesh extracted since), and its points count it as an optimisation that
+  // left the solved ones where they were (vd_count_optimisation), the ring following them as after
+  // a solve (Follow), so fusion (k_min, k_min_new) starts as early as when every frame is solved.
+  if (!solve) {
+    const VdPose to_cam = ToVdPose(pose_.inverse());
+    if (bricks_) {
+      VD_RETURN_IF_ERROR(ops_.DeformVertices(*bricks_, *pool_, volume_.vol.voxel_size, &mesh_));
+      VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, to_cam, cam_, &live_));
+      VD_RETURN_IF_ERROR(ocl::CountOptimisation(*ctx_, solved_.count, solved_.list, pool_->def_pos));
+      VD_RETURN_IF_ERROR(ops_.Follow(*bricks_, *pool_, active_, volume_.vol.voxel_size));
+    } else {
+      VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
+      VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, to_cam, cam_, &live_));
+      VD_RETURN_IF_ERROR(ocl::CountOptimisation(*ctx_, solved_.count, solved_.list, volume_.def_pos));
+      VD_RETURN_IF_ERROR(ops_.Follow(volume_, active_));
+    }
+    return ctx_->Finish();
+  }
   if (bricks_) {
     VD_RETURN_IF_ERROR(
         solver_->Prepare(DeviceLattice::Bricks(*bricks_, volume_.vol.voxel_size), bricks_in_use_, solved_));

@@ -122,12 +122,12 @@ struct EngineParams {
   // the fine level alone, and a quarter of the frame time). 0: always SolverParams::levels.
   int static_levels = 1;
   // While the field is static, the non-rigid solve runs on every static_solve_every-th frame; the
-  // frames between still build their active set, fuse through the field as it stands, track the
-  // camera and publish the mesh. A static field has nothing to solve (its solve only keeps it
-  // static), and a scene that starts to deform is found by the same measurement within
-  // kFieldStateInterval frames (the bend's slow start, static on frames 12-21: drift 7.26 -> 7.27
-  // mm). Rigid scene: non-rigid stage ~60 -> ~36 ms a frame, displacement 0.52 -> 0.50 mm
-  // (docs/BENCHMARKS.md "Session 34"). 1: every frame.
+  // frames between still build their active set, rasterise, fuse through the field as it stands
+  // (counted as an optimisation for k_min), track the camera and publish the mesh. A static field
+  // has nothing to solve (its solve only keeps it static), and a scene that starts to deform is
+  // found by the same measurement within kFieldStateInterval frames (the bend's slow start, static
+  // on frames 12-21: drift 7.26 -> 7.36 mm). Rigid scene: frame 0.82-0.84x, displacement 0.52 ->
+  // 0.50 mm (docs/BENCHMARKS.md "Session 34"). 1: every frame.
   int static_solve_every = 2;
   // ... and points never fused before (new space: weight 0) only after this many. Measured on the
   // long bend (docs/BENCHMARKS.md "Long takes"): new geometry fused after 3 optimisations, as the

@@ -46,6 +46,10 @@ void LevelMomentsUp(VdActive parent, VdActive child, const float* moments_f, int
   for (int k = 0; k < n; ++k) vd_level_moments_up(k, parent, child, moments_f, moments_c);
 }
 
+void CountOptimisation(const int* list, int m, vd_float4* def_pos) {
+  for (int k = 0; k < m; ++k) vd_count_optimisation(k, list, def_pos);
+}
+
 void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q) {
 #pragma omp parallel for schedule(static)
   for (int k = 0; k < m; ++k) q[k] = vd_system_apply_cached(k, blocks, nbr, d);

@@ -25,6 +25,8 @@ void CellMoments(VdActive a, const VdCorrespondence* cons, const vd_uint* cell_s
 void BtbAssemble(VdActive a, const int* neighbours, const float* edge_w, const float* moments, VdSolverWeights w,
                  const vd_float4* x0, int m, float* blocks, int* nbr, vd_float4* data_rhs, VdMat3* diag_inv);
 // q = A d from the cached blocks (edge-weighted ARAP Laplacian, w_d B^T B, damping) for m points.
+// vd_count_optimisation for the m listed points.
+void CountOptimisation(const int* list, int m, vd_float4* def_pos);
 void ApplySystemCached(const float* blocks, const int* nbr, const vd_float4* d, int m, vd_float4* q);
 // The PCG's passes (shared/solver.h, the Chronopoulos/Gear form) over m points, with partial sums
 // per group of VD_PCG_GROUP points added in the kernels' order: w = A u with the triples

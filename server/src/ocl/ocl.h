@@ -17,6 +17,7 @@
 #include <mutex>
 #include <string>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "vd/common/status.h"
@@ -187,7 +188,9 @@ class Context {
     if (n > b.size()) return OutOfRange("download past the end of a device buffer");
     *pending = PendingRead();
     if (n == 0) return Status::Ok();
-    VD_CL_CHECK(clEnqueueReadBuffer(queue_, b.mem(), CL_FALSE, 0, n * sizeof(T), data, 0, nullptr, &pending->event_));
+    cl_event event = nullptr;
+    VD_CL_CHECK(clEnqueueReadBuffer(queue_, b.mem(), CL_FALSE, 0, n * sizeof(T), data, 0, nullptr, &event));
+    pending->event_ = event;
     VD_CL_CHECK(clFlush(queue_));
     return Status::Ok();
   }

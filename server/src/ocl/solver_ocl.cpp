@@ -15,6 +15,10 @@ Status ScatterState(Context& ctx, size_t m, const Buffer<int32_t>& list, const B
   return kSolverScatterState(ctx, m, list, x, rot, def_pos, def_rot);
 }
 
+Status CountOptimisation(Context& ctx, size_t m, const Buffer<int32_t>& list, Buffer<vd_float4>& def_pos) {
+  return kSolverCountState(ctx, m, list, def_pos);
+}
+
 // The five VD_ACTIVE_PARAMS of lattice L and active set a.
 #define VD_ACTIVE_OF(L, a) (L).lat, *(L).nbr, *(L).slot_keys, (a).list, (a).compact
 

@@ -22,6 +22,8 @@ inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<vd_float4
 inline constexpr Kernel<void(const Buffer<int32_t>& list, const Buffer<vd_float4>& x, const Buffer<vd_float4>& rot,
                              Buffer<vd_float4>& def_pos,
                              Buffer<vd_float4>& def_rot)> kSolverScatterState{"vd_solver_scatter_state"};
+inline constexpr Kernel<void(const Buffer<int32_t>& list, Buffer<vd_float4>& def_pos)> kSolverCountState{
+    "vd_solver_count_state"};
 // One item per per-pixel constraint.
 inline constexpr Kernel<void(const Buffer<VdCorrespondence>& corr, const Buffer<int32_t>& compact, VdVolume vol,
                              Buffer<int32_t>& cell_of,
@@ -126,6 +128,9 @@ Status GatherState(Context& ctx, size_t m, const Buffer<int32_t>& list, const Bu
 // The solved state back into the grid's field (counting the optimisation).
 Status ScatterState(Context& ctx, size_t m, const Buffer<int32_t>& list, const Buffer<vd_float4>& x,
                     const Buffer<vd_float4>& rot, Buffer<vd_float4>& def_pos, Buffer<vd_float4>& def_rot);
+// An unsolved frame of a static field counted as an optimisation of the m listed points (shared/
+// solver.h vd_count_optimisation): their state stays, their count grows by one.
+Status CountOptimisation(Context& ctx, size_t m, const Buffer<int32_t>& list, Buffer<vd_float4>& def_pos);
 // The rest positions t_hat of the ARAP prior: the active points' lattice positions.
 Status RestPositions(Context& ctx, const DeviceLattice& L, const DeviceActiveSet& a, Buffer<vd_float4>& t_hat);
 // First half of the counting sort of the n per-pixel constraints by cell (so that A applies
