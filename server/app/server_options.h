@@ -3,9 +3,9 @@
 #include <string>
 
 #include "core/engine.h"
+#include "gate.h"
 #include "vd/common/codecs.h"
 #include "vd/common/flags.h"
-#include "gate.h"
 
 namespace vd {
 

@@ -7,9 +7,9 @@
 #endif
 #include <CL/cl.h>
 
-#include <cstddef>
 #include <algorithm>
 #include <climits>
+#include <cstddef>
 #include <cstdint>
 #include <cstdlib>
 #include <map>
