@@ -973,6 +973,20 @@ Status Engine::FactorRigidMotion(FrameResult* result) {
   return Status::Ok();
 }
 
+Status Engine::RasterizeModel(const VdPose& world_to_cam) {
+  if (bricks_) {
+    VD_RETURN_IF_ERROR(ops_.DeformVertices(*bricks_, *pool_, volume_.vol.voxel_size, &mesh_));
+  } else {
+    VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
+  }
+  return ops_.Rasterize(mesh_, world_to_cam, cam_, &live_);
+}
+
+Status Engine::FollowSolved() {
+  if (bricks_) return ops_.Follow(*bricks_, *pool_, active_, volume_.vol.voxel_size);
+  return ops_.Follow(volume_, active_);
+}
+
 Status Engine::NonRigid(FrameResult* result, bool solve) {
   // M from the surface extracted after the last frame; new members start from the field. A static
   // field is solved on fewer levels (EngineParams::static_levels).
@@ -991,18 +1005,10 @@ Status Engine::NonRigid(FrameResult* result, bool solve) {
   // left the solved ones where they were (vd_count_optimisation), the ring following them as after
   // a solve (Follow), so fusion (k_min, k_min_new) starts as early as when every frame is solved.
   if (!solve) {
-    const VdPose to_cam = ToVdPose(pose_.inverse());
-    if (bricks_) {
-      VD_RETURN_IF_ERROR(ops_.DeformVertices(*bricks_, *pool_, volume_.vol.voxel_size, &mesh_));
-      VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, to_cam, cam_, &live_));
-      VD_RETURN_IF_ERROR(ocl::CountOptimisation(*ctx_, solved_.count, solved_.list, pool_->def_pos));
-      VD_RETURN_IF_ERROR(ops_.Follow(*bricks_, *pool_, active_, volume_.vol.voxel_size));
-    } else {
-      VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
-      VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, to_cam, cam_, &live_));
-      VD_RETURN_IF_ERROR(ocl::CountOptimisation(*ctx_, solved_.count, solved_.list, volume_.def_pos));
-      VD_RETURN_IF_ERROR(ops_.Follow(volume_, active_));
-    }
+    VD_RETURN_IF_ERROR(RasterizeModel(ToVdPose(pose_.inverse())));
+    ocl::Buffer<vd_float4>& def_pos = bricks_ ? pool_->def_pos : volume_.def_pos;
+    VD_RETURN_IF_ERROR(ocl::CountOptimisation(*ctx_, solved_.count, solved_.list, def_pos));
+    VD_RETURN_IF_ERROR(FollowSolved());
     return ctx_->Finish();
   }
   if (bricks_) {
@@ -1031,12 +1037,7 @@ Status Engine::NonRigid(FrameResult* result, bool solve) {
   const VdPose world_to_cam = ToVdPose(pose_.inverse());
   for (int outer = 0; outer < params_.nonrigid_outer_iterations; ++outer) {
     // The deformed mesh at the current pose: each pixel pairs a model sample with its observation.
-    if (bricks_) {
-      VD_RETURN_IF_ERROR(ops_.DeformVertices(*bricks_, *pool_, volume_.vol.voxel_size, &mesh_));
-    } else {
-      VD_RETURN_IF_ERROR(ops_.DeformVertices(volume_, &mesh_));
-    }
-    VD_RETURN_IF_ERROR(ops_.Rasterize(mesh_, world_to_cam, cam_, &live_));
+    VD_RETURN_IF_ERROR(RasterizeModel(world_to_cam));
     VD_RETURN_IF_ERROR(ops_.Correspondences(live_, maps_.vmap[0], maps_.nmap[0], mesh_, cp, corr_));
     if (photo) {
       VdPhotoParams pp{};
@@ -1055,12 +1056,11 @@ Status Engine::NonRigid(FrameResult* result, bool solve) {
     if (bricks_) {
       VD_ASSIGN_OR_RETURN(summary, solver_->Solve(pool_->def_pos, pool_->def_rot, corr_, total, energies));
       VD_RETURN_IF_ERROR(solver_->WriteBack(pool_->def_pos, pool_->def_rot));
-      VD_RETURN_IF_ERROR(ops_.Follow(*bricks_, *pool_, active_, volume_.vol.voxel_size));
     } else {
       VD_ASSIGN_OR_RETURN(summary, solver_->Solve(volume_, corr_, total, energies));
       VD_RETURN_IF_ERROR(solver_->WriteBack(volume_));
-      VD_RETURN_IF_ERROR(ops_.Follow(volume_, active_));
     }
+    VD_RETURN_IF_ERROR(FollowSolved());
     if (energies) {
       if (!result->energies_evaluated) result->energy_initial = summary.energy_initial;
       result->energy_final = summary.energy_final;

@@ -343,6 +343,11 @@ class Engine {
   Status ExtractTracked(FrameResult* result);
   // The frame's active set, then (solve) its correspondences and the solve.
   Status NonRigid(FrameResult* result, bool solve);
+  // The model (mesh_) deformed by the field and rasterised into live_ at world_to_cam: what each
+  // pixel pairs with, and what the features' lifting and the bricks' growth read.
+  Status RasterizeModel(const VdPose& world_to_cam);
+  // The ring of M follows the solved points and counts the optimisation (ops_.Follow).
+  Status FollowSolved();
   // Moves the rigid part of the field into the camera pose once it exceeds
   // EngineParams::field_rigid_threshold (the deformed surface stays where the camera sees it), and
   // decides from the same measurement whether the field is static (EngineParams::static_levels).
