@@ -69,11 +69,13 @@ struct EngineParams {
   float icp_degeneracy = 5e-5f;
   // Correspondences farther apart than this are rejected, metres.
   float icp_max_distance = 0.10f;
-  // An ICP level stops when a step |xi| (radians and metres together) falls below this: 5e-5 is
-  // 0.05 mm or 0.003 degrees, still far under the sensor's noise (~1 mm). On the synthetic scenes
-  // 1e-5 stopped 18 % of the reductions earlier than 1e-6, and 5e-5 another 18-27 % earlier than
-  // 1e-5, each with the same surface error and drift (docs/BENCHMARKS.md "Real time").
-  float icp_min_step = 5e-5f;
+  // An ICP level stops when a step |xi| (radians and metres together) falls below this. The step
+  // is applied; the stop leaves out only the next one, and Gauss-Newton steps shrink by an order of
+  // magnitude or more once this close. 3e-4 is 0.3 mm or 0.017 degrees (0.5 mm at 2 m), under the
+  // sensor's noise (~1 mm). 5e-5 -> 3e-4 took 19-26 % of the reductions away on the synthetic scenes
+  // with surface error and drift within 0.03 mm, and 7-Scenes' ATE to within 1 mm (docs/BENCHMARKS.md
+  // "Session 35").
+  float icp_min_step = 3e-4f;
   // Correspondences whose normals differ by more than this are rejected, degrees.
   float icp_max_normal_angle_deg = 30.f;
   // Tracking fails when fewer pixels than this fraction of the valid ones are inliers ...
