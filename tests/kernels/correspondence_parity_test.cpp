@@ -85,6 +85,8 @@ struct ColourRowScene {
       intensity[i] =
           100.f / 255.f + offset + gu * (2.f * float(i % hw) + 0.5f - 30.f) + gv * (2.f * float(i / hw) + 0.5f - 20.f);
   }
+  // The colour row of pixel i (the first of its 2x2 block) in Rows().
+  int RowOf(int i) const { return n + (i / cam.width / 2) * ((cam.width + 1) / 2) + (i % cam.width) / 2; }
   std::vector<VdCorrespondence> Rows() const {
     std::vector<VdCorrespondence> rows(2 * size_t(n));
     for (int i = 0; i < n; ++i) {
@@ -102,12 +104,14 @@ TEST(CorrespondenceTest, ColourRowIsTheLinearisedIntensityError) {
   sc.Ramp(0.02f, 0.01f, 0.005f);
   const auto rows = sc.Rows();
   const int i = 20 * sc.cam.width + 30;
-  const VdCorrespondence& c = rows[sc.n + i];
-  // Same canonical sample, twice the depth row's weight (a row on every second pixel; the residual
-  // 0.02 is under the Huber threshold).
+  ASSERT_EQ(vd_photo_pixel(sc.RowOf(i) - sc.n, sc.cam.width), i);
+  const VdCorrespondence& c = rows[sc.RowOf(i)];
+  // Same canonical sample, four times the depth row's weight (a row on one pixel of each 2x2 block;
+  // the residual 0.02 is under the Huber threshold), for the coarse levels alone.
   EXPECT_FLOAT_EQ(c.canonical.x, 1.f);
   EXPECT_FLOAT_EQ(c.canonical.z, 3.f);
-  EXPECT_FLOAT_EQ(c.canonical.w, 1.6f);
+  EXPECT_FLOAT_EQ(c.canonical.w, 3.2f);
+  EXPECT_EQ(c.normal.w, VD_CORR_COARSE_ONLY);
   const vd_float4 p = sc.model.vertex[i];
   const vd_float4 s0 = vd_pose_apply(sc.prm.cam_to_world, p);
   // At the rendered point the row is s (I - c).
@@ -131,11 +135,11 @@ TEST(CorrespondenceTest, ColourRowIsTheLinearisedIntensityError) {
   EXPECT_NEAR(vd_dot3(c.normal, ray), 0.f, 1e-6f);
   // A bright spot far off the model's colour weighs linearly (Huber 0.1 at a residual of 0.5).
   sc.Ramp(0.5f, 0.01f, 0.005f);
-  EXPECT_NEAR(sc.Rows()[sc.n + i].canonical.w, 1.6f * 0.1f / 0.5f, 1e-5f);
+  EXPECT_NEAR(sc.Rows()[sc.RowOf(i)].canonical.w, 3.2f * 0.1f / 0.5f, 1e-5f);
   // The cap: a row never weighs more than max_strength of a depth row, with the same zero.
   sc.prm.max_strength = 0.01f;
   sc.Ramp(0.02f, 0.01f, 0.005f);
-  const VdCorrespondence capped = sc.Rows()[sc.n + i];
+  const VdCorrespondence capped = sc.Rows()[sc.RowOf(i)];
   ASSERT_GT(vd_length3(c.normal), 0.015f);
   EXPECT_NEAR(vd_length3(capped.normal), 0.01f, 1e-6f);
   EXPECT_NEAR(vd_dot3(capped.normal, s0 - capped.target) / vd_length3(capped.normal),
@@ -148,21 +152,29 @@ TEST(CorrespondenceTest, ColourRowsNeedTextureSmoothDepthAndADepthRow) {
   // No texture: no row anywhere.
   sc.Ramp(0.02f, 0.f, 0.f);
   for (const auto& c : sc.Rows()) EXPECT_FALSE(c.canonical.w > 0.f && c.normal.x != 0.f);
-  // Texture: every second pixel (a checkerboard) at least edge_radius from the border has one.
+  // Texture: one pixel of each 2x2 block at least edge_radius from the border has one, and the
+  // rows end after the blocks.
   sc.Ramp(0.02f, 0.01f, 0.f);
   auto rows = sc.Rows();
   int count = 0;
-  for (int k = 0; k < sc.n; ++k) {
-    count += rows[sc.n + k].canonical.w > 0.f;
-    if ((k % sc.cam.width + k / sc.cam.width) % 2) EXPECT_EQ(rows[sc.n + k].canonical.w, 0.f);
+  const int blocks = vd_photo_rows(sc.cam.width, sc.cam.height);
+  ASSERT_EQ(blocks, sc.n / 4);
+  for (int b = 0; b < sc.n; ++b) {
+    if (b >= blocks) {
+      EXPECT_EQ(rows[sc.n + b].canonical.w, 0.f);
+      continue;
+    }
+    const int k = vd_photo_pixel(b, sc.cam.width);
+    ASSERT_EQ(sc.RowOf(k), sc.n + b);
+    count += rows[sc.n + b].canonical.w > 0.f;
   }
-  EXPECT_EQ(count, (64 - 8) * (48 - 8) / 2);
+  EXPECT_EQ(count, (64 - 8) * (48 - 8) / 4);
   // A depth edge 3 or 4 pixels to the right drops the row; 5 pixels away it does not.
   for (int gap : {3, 4, 5}) {
     sc.obs_v = sc.model.vertex;
     for (int k = 0; k < sc.n; ++k)
       if (k % sc.cam.width >= 30 + gap) sc.obs_v[k].z = 1.2f;
-    EXPECT_EQ(sc.Rows()[sc.n + i].canonical.w > 0.f, gap > 4) << gap;
+    EXPECT_EQ(sc.Rows()[sc.RowOf(i)].canonical.w > 0.f, gap > 4) << gap;
   }
   // A pixel without a depth row has no colour row.
   sc.obs_v = sc.model.vertex;
@@ -240,7 +252,7 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
     std::vector<float> f;
     for (const auto& c : v)
       f.insert(f.end(), {c.canonical.x, c.canonical.y, c.canonical.z, c.canonical.w, c.target.x, c.target.y, c.target.z,
-                         c.target.w, c.normal.x, c.normal.y, c.normal.z});
+                         c.target.w, c.normal.x, c.normal.y, c.normal.z, c.normal.w});
     return f;
   };
   EXPECT_TRUE(test::AllClose(flatten(dev), flatten(ref), 1e-5f, 1e-5f));
@@ -259,11 +271,24 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
   cpu::PhotometricCorrespondences(model, ov.data(), mc.colors.data(), mc.triangles.data(), intensity.data(), pp,
                                   rows.data());
   int colour_rows = 0;
-  for (int k = 0; k < n; ++k) colour_rows += rows[n + k].canonical.w > 0.f;
-  // Most of the sphere's inner pixels (those 4 px inside its outline) have texture; one in two of
+  const int blocks = vd_photo_rows(cam.width, cam.height);
+  for (int b = 0; b < blocks; ++b) {
+    if (!(rows[n + b].canonical.w > 0.f)) continue;
+    ++colour_rows;
+    // One pixel of each 2x2 block, from that pixel's depth row; only the coarse levels solve it, a
+    // depth row is the fine level's.
+    const int k = vd_photo_pixel(b, cam.width);
+    ASSERT_EQ((k % cam.width) % 2 + (k / cam.width) % 2, 0) << k;
+    ASSERT_EQ(rows[n + b].canonical.x, rows[k].canonical.x) << b;
+    ASSERT_EQ(rows[n + b].normal.w, VD_CORR_COARSE_ONLY) << b;
+    ASSERT_FALSE(vd_fine_row(rows[n + b])) << b;
+    ASSERT_TRUE(vd_fine_row(rows[k])) << k;
+  }
+  for (size_t r = size_t(n) + blocks; r < rows.size(); ++r) ASSERT_EQ(rows[r].canonical.w, 0.f) << r;
+  // Most of the sphere's inner pixels (those 4 px inside its outline) have texture; one in four of
   // them gets a row.
-  EXPECT_GT(colour_rows, 500) << colour_rows;
-  EXPECT_LT(colour_rows, valid / 2) << colour_rows;
+  EXPECT_GT(colour_rows, 250) << colour_rows;
+  EXPECT_LT(colour_rows, valid / 4) << colour_rows;
   dm.colors = test::ToDevice(ctx, mc.colors);
   auto drgba = test::ToDevice(ctx, rgba);
   auto tmp = ctx->Alloc<float>(n / 4), dint = ctx->Alloc<float>(n / 4);
@@ -272,7 +297,9 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
   ASSERT_TRUE(ops.Intensity(drgba, *tmp, *dint, cam.width, cam.height).ok());
   ASSERT_TRUE(ops.Correspondences(dr, dov, don, dm, prm, *drows).ok());
   ASSERT_TRUE(ops.PhotometricCorrespondences(dr, dov, dm, *dint, pp, *drows).ok());
-  EXPECT_TRUE(test::AllClose(flatten(test::FromDevice(ctx, *drows, 2 * size_t(n))), flatten(rows), 1e-5f, 1e-5f));
+  const size_t used = size_t(n) + blocks;
+  rows.resize(used);
+  EXPECT_TRUE(test::AllClose(flatten(test::FromDevice(ctx, *drows, used)), flatten(rows), 1e-5f, 1e-5f));
   // A buffer without room for the colour rows is refused, not overrun.
   EXPECT_FALSE(ops.PhotometricCorrespondences(dr, dov, dm, *dint, pp, *out).ok());
 
@@ -292,13 +319,16 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
   for (int k = 0; k < n; ++k) {
     if (!(hinted[k].canonical.w > 0.f)) continue;
     ASSERT_EQ(hinted[k].target.w, float(owners[mc.triangles[3 * model.ids[k]]])) << k;
-    if (hinted[n + k].canonical.w > 0.f) ASSERT_EQ(hinted[n + k].target.w, hinted[k].target.w) << k;
+    const int b = (k / cam.width / 2) * ((cam.width + 1) / 2) + (k % cam.width) / 2;
+    if (vd_photo_pixel(b, cam.width) == k && hinted[n + b].canonical.w > 0.f)
+      ASSERT_EQ(hinted[n + b].target.w, hinted[k].target.w) << k;
     ++checked;
   }
   EXPECT_EQ(checked, valid);
   ASSERT_TRUE(ops.Correspondences(dr, dov, don, dm, prm, *drows).ok());
   ASSERT_TRUE(ops.PhotometricCorrespondences(dr, dov, dm, *dint, pp, *drows).ok());
-  EXPECT_TRUE(test::AllClose(flatten(test::FromDevice(ctx, *drows, 2 * size_t(n))), flatten(hinted), 1e-5f, 1e-5f));
+  hinted.resize(used);
+  EXPECT_TRUE(test::AllClose(flatten(test::FromDevice(ctx, *drows, used)), flatten(hinted), 1e-5f, 1e-5f));
 }
 
 }  // namespace

@@ -432,6 +432,84 @@ TEST(HierarchyParityTest, CoarseSystemFromFineConstraintsMatchesCpuAndTheReexpre
   }
 }
 
+// The dense colour term's rows (VD_CORR_COARSE_ONLY) are the coarse levels' alone: the fine cell
+// moments, rows, targets and energy leave them out, while the coarse moments (on the device and the
+// CPU) and the restricted constraints take them as any other row.
+TEST(HierarchyParityTest, CoarseOnlyRowsEnterTheCoarseLevelsAlone) {
+  VD_REQUIRE_OCL(ctx);
+  const Fixture f = MakeSphere();
+  const int m = int(f.fine.list.size());
+  const FineProblem p = MakeFineProblem(f);
+  const VdLattice fl = vd_lattice_dense(f.vol);
+  // Every third row marked; the same rows with no weight; the same rows plain.
+  std::vector<VdCorrespondence> marked = p.cons, weightless = p.cons;
+  int n_marked = 0;
+  for (size_t c = 0; c < marked.size(); c += 3) {
+    if (!(marked[c].canonical.w > 0.f)) continue;
+    marked[c].normal.w = VD_CORR_COARSE_ONLY;
+    weightless[c].canonical.w = 0.f;
+    ++n_marked;
+  }
+  ASSERT_GT(n_marked, 1000);
+
+  // Fine: the moments are those without the marked rows (the count slot still counts them).
+  std::vector<float> got(size_t(VD_CELL_MOMENT_FLOATS) * m), want(got.size()), plain(got.size());
+  cpu::CellMoments(Dense(fl, f.fine), marked.data(), p.cell_start.data(), m, got.data());
+  cpu::CellMoments(Dense(fl, f.fine), weightless.data(), p.cell_start.data(), m, want.data());
+  cpu::CellMoments(Dense(fl, f.fine), p.cons.data(), p.cell_start.data(), m, plain.data());
+  double differs = 0;
+  for (int k = 0; k < m; ++k) {
+    for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) {
+      const size_t at = size_t(VD_CELL_MOMENT_FLOATS) * k + i;
+      ASSERT_EQ(got[at], want[at]) << "cell " << k << " float " << i;
+      differs = std::max(differs, double(std::abs(plain[at] - want[at])));
+    }
+  }
+  EXPECT_GT(differs, 1e-3) << "the marked rows carry weight when plain";
+  const std::vector<int32_t> cells = CellsOf(marked, f.fine.compact, f.vol);
+  const VdActive fa = Dense(fl, f.fine);
+  for (size_t c = 0; c < marked.size(); ++c) {
+    if (vd_fine_row(marked[c])) continue;
+    ASSERT_EQ(vd_constraint_apply(marked[c], cells[c], fa, p.x_f.data()), 0.f) << c;
+    ASSERT_EQ(vd_constraint_target(marked[c]), 0.f) << c;
+    ASSERT_EQ(vd_constraint_energy(marked[c], cells[c], fa, p.x_f.data()), 0.f) << c;
+  }
+
+  // Coarse: the moments of the marked rows are those of the plain ones, on the device and the CPU.
+  DeviceActiveSet fine;
+  fine.count = size_t(m);
+  fine.list = ToDevice(ctx, f.fine.list);
+  fine.compact = ToDevice(ctx, f.fine.compact);
+  const DeviceLattice dfl = DeviceLattice::Dense(f.vol);
+  auto d_marked = ToDevice(ctx, marked);
+  auto d_start = ToDevice(ctx, p.cell_start);
+  auto d_x_f = ToDevice(ctx, p.x_f);
+  const int s = 2;
+  const DeviceLattice dcl = dfl.Level(s);
+  const cpu::ActiveSet lvl = cpu::BuildLevel(fl, nullptr, f.fine.list, s, dcl.lat, dcl.Entries(0));
+  const int n = int(lvl.list.size());
+  DeviceActiveSet coarse;
+  coarse.count = size_t(n);
+  coarse.list = ToDevice(ctx, lvl.list);
+  coarse.compact = ToDevice(ctx, lvl.compact);
+  coarse.neighbours = ToDevice(ctx, lvl.neighbours);
+  std::vector<float> c_marked(size_t(VD_CELL_MOMENT_FLOATS) * n), c_plain(c_marked.size());
+  cpu::LevelMoments(Dense(dcl.lat, lvl), s, fa, marked.data(), p.cell_start.data(), p.x_f.data(), n, c_marked.data());
+  cpu::LevelMoments(Dense(dcl.lat, lvl), s, fa, p.cons.data(), p.cell_start.data(), p.x_f.data(), n, c_plain.data());
+  EXPECT_EQ(c_marked, c_plain);
+  auto d_moments = ctx->Alloc<float>(c_marked.size());
+  ASSERT_TRUE(d_moments.ok());
+  ASSERT_TRUE(ocl::LevelMoments(*ctx, dfl, fine, dcl, coarse, s, d_marked, d_start, d_x_f, *d_moments).ok());
+  EXPECT_TRUE(AllClose(FromDevice(ctx, *d_moments, c_marked.size()), c_plain, 1e-6f, 1e-5f));
+  // Restricted to a coarse level (without the cached moments), a row is that level's like any other.
+  std::vector<vd_float4> x0(n), rot0(n);
+  cpu::LevelRestrict(Dense(dcl.lat, lvl), n, s, fa, p.x_f.data(), p.rot_f.data(), x0.data(), rot0.data());
+  std::vector<VdCorrespondence> cc(marked.size());
+  cpu::LevelConstraints(marked.data(), cells.data(), int(marked.size()), fa, p.x_f.data(), s, Dense(dcl.lat, lvl),
+                        x0.data(), cc.data());
+  for (const VdCorrespondence& c : cc) ASSERT_TRUE(vd_fine_row(c));
+}
+
 // A level's moments from the level below it (vd_level_moments_up): on the device against the CPU,
 // and against the same level's moments taken from the fine constraints (vd_level_moments), which
 // are the same sums; twice up (spacing 2 -> 4 -> 8) as a four-level hierarchy runs it.

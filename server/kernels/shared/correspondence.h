@@ -19,9 +19,20 @@ typedef struct {
    * (its triangle's first vertex's owner, vd_sparse_constraint_cell), so that its cell is found
    * without probing the brick table; -1 (or anything not a slot next to the cell) for none. */
   vd_float4 target;
-  /* The observed normal in world coordinates; w unused. */
+  /* The observed normal in world coordinates; w: VD_CORR_COARSE_ONLY for a row only the coarse
+   * levels solve (vd_fine_row), else 0. */
   vd_float4 normal;
 } VdCorrespondence;
+
+/* normal.w of a row that enters only the hierarchy's coarse levels: the dense colour term's. Its
+ * evidence is the slide along the surface that depth cannot see, which accumulates as a smooth,
+ * low-frequency error (the bend's strain, docs/BENCHMARKS.md "Session 28"); on the fine level the
+ * same rows also pulled on each point by the image's fine grain and noise (the rigid scene's
+ * non-rigid displacement 0.66 -> 0.85 mm over 150 frames, "Session 29"). */
+#define VD_CORR_COARSE_ONLY 1.0f
+
+/* Whether the fine level solves row c (every row but the coarse-only ones). */
+VD_INLINE int vd_fine_row(VdCorrespondence c) { return c.normal.w != VD_CORR_COARSE_ONLY; }
 
 typedef struct {
   /* Thresholds of the kernels: distance (metres), normal deviation and view (1 - cos). */
@@ -131,6 +142,14 @@ VD_INLINE float vd_model_luma(int i, VD_GLOBAL const vd_uint* ids, VD_GLOBAL con
          b.z * vd_rgba_luma(colors[tris[3 * t + 2]]);
 }
 
+/* The dense colour term's rows: one per 2x2 block of pixels, at the block's first pixel, stored after
+ * the n depth rows in block order: rows[n + b] for the block b of vd_photo_pixel(b). */
+VD_INLINE int vd_photo_rows(int width, int height) { return ((width + 1) / 2) * ((height + 1) / 2); }
+VD_INLINE int vd_photo_pixel(int b, int width) {
+  int bw = (width + 1) / 2;
+  return 2 * (b / bw) * width + 2 * (b % bw);
+}
+
 /* Pixel i's colour row, from its depth row (canonical sample and w_c; no row where that has none). */
 VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_row, VD_GLOBAL const vd_float4* model_v,
                                                 VD_GLOBAL const vd_float4* obs_v, VD_GLOBAL const vd_uint* ids,
@@ -142,9 +161,10 @@ VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_ro
   c.target = VD_F4(0.0f, 0.0f, 0.0f, -1.0f);
   c.normal = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   int w = prm.cam.width, x = i % w, y = i / w;
-  /* Every second pixel, in a checkerboard, with twice the weight: neighbours see nearly the same
-   * smoothed intensity, and each row costs the solver as much as a depth row. */
-  if (((x + y) & 1) != 0 || !(depth_row.canonical.w > 0.0f) || !vd_photo_depth_smooth(obs_v, x, y, prm)) return c;
+  /* One pixel of each 2x2 block, with four times the weight: neighbours see nearly the same
+   * smoothed intensity, the coarse levels that solve these rows have cells of 4 and 8 pixels at a
+   * metre, and each row costs the sort and the moments as much as a depth row. */
+  if (((x | y) & 1) != 0 || !(depth_row.canonical.w > 0.0f) || !vd_photo_depth_smooth(obs_v, x, y, prm)) return c;
   int hw = w / 2, hh = prm.cam.height / 2;
   float fx = (float)x, fy = (float)y;
   float gx =
@@ -164,13 +184,14 @@ VD_INLINE VdCorrespondence vd_photometric_pixel(int i, VdCorrespondence depth_ro
   float huber = ar > prm.huber ? prm.huber / ar : 1.0f;
   vd_float4 s0 = vd_pose_apply(prm.cam_to_world, p);
   c.canonical = depth_row.canonical;
-  c.canonical.w = 2.0f * depth_row.canonical.w * huber;
+  c.canonical.w = 4.0f * depth_row.canonical.w * huber;
   c.normal = n;
   c.target = s0 - n * (prm.scale * r / nn);
   c.target.w = depth_row.target.w;
   /* A strong edge is where the linearisation holds least: its row weighs at most max_strength of a
    * depth row (the same zero, a smaller slope). */
   if (nn > prm.max_strength * prm.max_strength) c.normal = n * (prm.max_strength / sqrt(nn));
+  c.normal.w = VD_CORR_COARSE_ONLY;
   return c;
 }
 

@@ -131,6 +131,7 @@ VD_INLINE VdCorrespondence vd_level_constraint(VdCorrespondence c, int kf, VdAct
   for (int o = 0; o < 8; ++o) p0 = p0 + x0_c[idx[o]] * alpha[o];
   out.target = c.target - (p_cur - p0);
   out.target.w = 0.0f;
+  out.normal.w = 0.0f; /* a coarse level solves every row (vd_fine_row) */
   return out;
 }
 

@@ -166,18 +166,24 @@ VD_INLINE int vd_active_cell(VdActive a, int kc, vd_float4 g, int* idx, float* a
 }
 
 /* w_c n_c . sum_l alpha_l d_l: the row of B (times its weight) of constraint c, in the cell whose
- * first corner is active point kc (-1: unusable), applied to d. */
+ * first corner is active point kc (-1: unusable), applied to d. The rows of B are the fine level's:
+ * a coarse-only row (vd_fine_row) is 0 here, in the targets, the gathers, the cell moments and the
+ * energy; the coarse levels take it from the moments (vd_level_moments) or restricted
+ * (vd_level_constraint, which clears the mark). */
 VD_INLINE float vd_constraint_apply(VdCorrespondence c, int kc, VdActive a, VD_GLOBAL const vd_float4* d) {
   int idx[8];
   float alpha[8];
-  if (kc < 0 || !(c.canonical.w > 0.0f) || !vd_active_cell(a, kc, c.canonical, idx, alpha)) return 0.0f;
+  if (kc < 0 || !(c.canonical.w > 0.0f) || !vd_fine_row(c) || !vd_active_cell(a, kc, c.canonical, idx, alpha))
+    return 0.0f;
   vd_float4 s = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int o = 0; o < 8; ++o) s = s + d[idx[o]] * alpha[o];
   return c.canonical.w * vd_dot3(c.normal, s);
 }
 
-/* w_c n_c . p_c: the constraint's right-hand side value. */
-VD_INLINE float vd_constraint_target(VdCorrespondence c) { return c.canonical.w * vd_dot3(c.normal, c.target); }
+/* w_c n_c . p_c: the constraint's right-hand side value (0 for a coarse-only row, vd_fine_row). */
+VD_INLINE float vd_constraint_target(VdCorrespondence c) {
+  return vd_fine_row(c) ? c.canonical.w * vd_dot3(c.normal, c.target) : 0.0f;
+}
 
 /* sum over the cells point k is a corner of, over their constraints c, of alpha_ck n_c values[c];
  * with `diag` non-null also accumulates sum w_c alpha_ck^2 n_c n_c^T (row-major 3x3). */
@@ -194,6 +200,7 @@ VD_INLINE vd_float4 vd_gather_constraints(int k, VdActive a, VD_GLOBAL const VdC
     int cx = gx - ox, cy = gy - oy, cz = gz - oz;
     for (vd_uint c = cell_start[kc]; c < cell_start[kc + 1]; ++c) {
       VdCorrespondence cc = cons[c];
+      if (!vd_fine_row(cc)) continue;
       float fx = cc.canonical.x - (float)cx, fy = cc.canonical.y - (float)cy, fz = cc.canonical.z - (float)cz;
       float w = (ox ? fx : 1.0f - fx) * (oy ? fy : 1.0f - fy) * (oz ? fz : 1.0f - fz);
       if (values) acc = acc + cc.normal * (w * values[c]);
@@ -318,6 +325,7 @@ VD_INLINE void vd_cell_moments(int kc, VdActive a, VD_GLOBAL const VdCorresponde
   for (int i = 0; i < VD_CELL_COUNT_SLOT; ++i) acc[i] = 0.0f;
   for (vd_uint c = c0; c < c1; ++c) {
     VdCorrespondence cc = cons[c];
+    if (!vd_fine_row(cc)) continue;
     vd_moments_add(acc, cc.canonical.x - (float)x, cc.canonical.y - (float)y, cc.canonical.z - (float)z, cc.canonical.w,
                    cc.normal, cc.canonical.w * vd_dot3(cc.normal, cc.target));
   }
@@ -644,7 +652,8 @@ VD_INLINE void vd_pcg_dots(int k, VD_GLOBAL const vd_float4* r, VD_GLOBAL const 
 VD_INLINE float vd_constraint_energy(VdCorrespondence c, int kc, VdActive a, VD_GLOBAL const vd_float4* x) {
   int idx[8];
   float alpha[8];
-  if (kc < 0 || !(c.canonical.w > 0.0f) || !vd_active_cell(a, kc, c.canonical, idx, alpha)) return 0.0f;
+  if (kc < 0 || !(c.canonical.w > 0.0f) || !vd_fine_row(c) || !vd_active_cell(a, kc, c.canonical, idx, alpha))
+    return 0.0f;
   vd_float4 s = VD_F4(0.0f, 0.0f, 0.0f, 0.0f);
   for (int o = 0; o < 8; ++o) s = s + x[idx[o]] * alpha[o];
   float r = vd_dot3(c.normal, s - c.target);

@@ -1022,10 +1022,10 @@ Status Engine::NonRigid(FrameResult* result, bool solve) {
   sparse_host_.clear();
   if (!matches_.empty() && params_.solver.w_dense > 0.f)
     AppendSparseConstraints(matches_, params_.features.w_sparse / params_.solver.w_dense, &sparse_host_);
-  // The dense colour rows, when on, follow the depth rows pixel for pixel (Preprocess made the
-  // intensity image; DeviceOps checks its size).
+  // The dense colour rows, when on, follow the depth rows, one per 2x2 block of pixels (Preprocess
+  // made the intensity image; DeviceOps checks its size).
   const bool photo = PhotometricEnabled();
-  const size_t dense_rows = photo ? 2 * pixels : pixels;
+  const size_t dense_rows = photo ? pixels + size_t(vd_photo_rows(cam_.width, cam_.height)) : pixels;
   const size_t total = dense_rows + sparse_host_.size();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, total));
   VD_RETURN_IF_ERROR(ctx_->Upload(corr_, sparse_host_.data(), sparse_host_.size(), dense_rows));

@@ -18,8 +18,8 @@ void SolverParams::Bind(FlagParser* f) {
   f->Add("w-dense", &w_dense, "Weight w_d of the dense point-to-plane term (paper eq. 1)");
   f->Add("w-reg", &w_reg, "Weight w_r of the as-rigid-as-possible prior (paper eq. 1)");
   f->Add("w-photo", &w_photo,
-         "Dense colour term: metres of point-to-plane error one unit of intensity (black to white) weighs as "
-         "(0 = off; it runs on colour registered to depth, --colour-registered)");
+         "Dense colour term, solved on the coarse levels: metres of point-to-plane error one unit of intensity "
+         "(black to white) weighs as (0 = off; it runs on colour registered to depth, --colour-registered)");
   f->Add("photo-max-strength", &photo_max_strength, "A colour row weighs at most this much of a depth row");
   f->Add("photo-huber", &photo_huber, "Intensity residual beyond which a colour row weighs linearly (Huber)");
   f->Add("photo-min-gradient", &photo_min_gradient,

@@ -23,20 +23,22 @@ struct SolverParams {
   float w_reg = 3.f;
   // The dense colour term (shared/correspondence.h vd_photometric_pixel; beyond the paper): the
   // metres of point-to-plane error one unit of intensity (black to white) weighs as, 0 = off. It
-  // pins the motion along the surface that depth cannot see wherever the surface has texture.
-  // At 0.03, measured over 60 frames (bend 150) (docs/BENCHMARKS.md "Session 28"): drift tube
-  // 1.09 -> 0.99 mm, cloth 2.23 -> 1.52, bend 7.17 -> 5.53, rigid 0.69 -> 0.79 (its non-rigid
-  // displacement over 300 frames 0.89 mm, bound 1). It runs only on colour registered to depth
+  // pins the motion along the surface that depth cannot see wherever the surface has texture. Its
+  // rows enter the hierarchy's coarse levels alone (VD_CORR_COARSE_ONLY): the slide it corrects
+  // adds up smoothly along a bending surface, while on the fine level the same rows pulled each
+  // point by the image's grain (the rigid scene's non-rigid displacement over 150 frames 0.66 ->
+  // 0.85 mm with them there, 0.53 -> 0.60 mm coarse-only). At 0.06 (docs/BENCHMARKS.md "Session
+  // 35"): drift tube 1.09 -> 0.98 mm, cloth 2.24 -> 1.35, bend 150 7.34 -> 4.83, bend 300 7.6 ->
+  // 5.59, for about 2 % of the frame. It runs only on colour registered to depth
   // (EngineParams::colour_registered): on 7-Scenes, whose colour comes from a second, uncalibrated
-  // sensor, it took the room's ATE 26.3 -> 31.6 mm (rigid 29.2), trusting colour misplaced on the
-  // geometry; the registration check keeps it off there. Off by default (0.03 turns it on): on the
-  // rigid scene over 150 frames the field's non-rigid displacement grows 0.66 -> 0.85 mm, past the
-  // 0.75 its test holds (docs/BENCHMARKS.md "Session 29").
-  float w_photo = 0.f;
+  // sensor, it took the room's ATE 26.3 -> 31.6 mm (rigid 29.2; session 28, on every level),
+  // trusting colour misplaced on the geometry; the registration check keeps it off there.
+  float w_photo = 0.06f;
   // A colour row weighs at most this much of a depth row: strong edges are where the linearisation
-  // holds least. Without the cap (at 0.03, full-resolution image) the deforming scenes gained more
-  // (tube 0.90, cloth 1.29, bend 4.09 mm) but the rigid scene's drift grew 0.69 -> 0.86 mm.
-  float photo_max_strength = 0.5f;
+  // holds least. Coarse-only at 0.06: cap 1 bend 150 4.83 mm, rigid 150 0.60; with the cap at 4 and
+  // w_photo 0.1 the bend reached 3.91 mm but the rigid scene 0.68 and the bend's worst surface
+  // frame over 300 frames 0.98 mm (bound 1).
+  float photo_max_strength = 1.f;
   // Intensity residual beyond which a colour row weighs linearly (Huber): occlusions, highlights
   // and lighting changes.
   float photo_huber = 0.1f;

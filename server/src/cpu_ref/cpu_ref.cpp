@@ -297,11 +297,13 @@ void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_f
 void PhotometricCorrespondences(const RasterMaps& model, const vd_float4* obs_v, const uint32_t* colors,
                                 const int32_t* triangles, const float* intensity, VdPhotoParams params,
                                 VdCorrespondence* rows) {
-  const int n = params.cam.width * params.cam.height;
+  const int n = params.cam.width * params.cam.height, blocks = vd_photo_rows(params.cam.width, params.cam.height);
 #pragma omp parallel for schedule(static)
-  for (int i = 0; i < n; ++i)
-    rows[n + i] = vd_photometric_pixel(i, rows[i], model.vertex.data(), obs_v, model.ids.data(), model.bary.data(),
+  for (int b = 0; b < blocks; ++b) {
+    const int i = vd_photo_pixel(b, params.cam.width);
+    rows[n + b] = vd_photometric_pixel(i, rows[i], model.vertex.data(), obs_v, model.ids.data(), model.bary.data(),
                                        colors, triangles, intensity, params);
+  }
 }
 
 void IcpReduce(const vd_float4* vmap, const vd_float4* nmap, const vd_float4* model_v, const vd_float4* model_n,

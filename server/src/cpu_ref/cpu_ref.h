@@ -107,8 +107,9 @@ void Correspondences(const RasterMaps& model, const vd_float4* obs_v, const vd_f
                      const vd_float4* canonical_grid, const int32_t* triangles, VdCorrParams params, int n,
                      VdCorrespondence* out, const int32_t* owners = nullptr);
 
-// The dense colour term's rows (shared/correspondence.h vd_photometric_pixel): rows[n + i] from the
-// depth row rows[i] of each of the n = width x height pixels; colors per vertex of `triangles`.
+// The dense colour term's rows (shared/correspondence.h vd_photometric_pixel): rows[n + b] for each
+// 2x2 block b of the n = width x height pixels, from its first pixel's depth row (vd_photo_pixel);
+// colors per vertex of `triangles`.
 void PhotometricCorrespondences(const RasterMaps& model, const vd_float4* obs_v, const uint32_t* colors,
                                 const int32_t* triangles, const float* intensity, VdPhotoParams params,
                                 VdCorrespondence* rows);

@@ -24,12 +24,13 @@ Status DeviceOps::PhotometricCorrespondences(const DeviceRaster& model, const oc
                                              const DeviceMesh& mesh, const ocl::Buffer<float>& intensity,
                                              const VdPhotoParams& params, ocl::Buffer<VdCorrespondence>& rows) {
   const size_t n = static_cast<size_t>(model.cam.width) * model.cam.height;
-  if (rows.size() < 2 * n) return OutOfRange("correspondence buffer smaller than two rows per pixel");
+  const size_t blocks = static_cast<size_t>(vd_photo_rows(model.cam.width, model.cam.height));
+  if (rows.size() < n + blocks) return OutOfRange("correspondence buffer without room for the colour rows");
   if (intensity.size() < static_cast<size_t>(model.cam.width / 2) * (model.cam.height / 2))
     return OutOfRange("intensity image smaller than half the raster's resolution");
   if (params.cam.width != model.cam.width || params.cam.height != model.cam.height)
     return InvalidArgument("colour rows: camera and raster sizes differ");
-  return ocl::kPhotometricCorrespondences(*ctx_, n, model.vertex, obs_v, model.ids, model.bary, mesh.colors,
+  return ocl::kPhotometricCorrespondences(*ctx_, blocks, model.vertex, obs_v, model.ids, model.bary, mesh.colors,
                                           mesh.triangles, intensity, params, rows);
 }
 

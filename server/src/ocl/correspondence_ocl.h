@@ -16,7 +16,8 @@ inline constexpr Kernel<void(const Buffer<vd_float4>& model_v, const Buffer<vd_f
                              const Buffer<int32_t>& tris, const Buffer<int32_t>& owners, VdCorrParams prm,
                              Buffer<VdCorrespondence>& out)>
     kCorrespondences{"vd_correspondences"};
-// One item per pixel: writes out[items + i] from out[i].
+// One item per 2x2 block b of the n pixels: writes out[n + b] from its first pixel's depth row
+// (shared/correspondence.h vd_photo_pixel).
 inline constexpr Kernel<void(const Buffer<vd_float4>& model_v, const Buffer<vd_float4>& obs_v,
                              const Buffer<uint32_t>& ids, const Buffer<vd_float4>& bary, const Buffer<uint32_t>& colors,
                              const Buffer<int32_t>& tris, const Buffer<float>& intensity, VdPhotoParams prm,

@@ -185,8 +185,9 @@ class DeviceOps {
   Status Correspondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
                          const ocl::Buffer<vd_float4>& obs_n, const DeviceMesh& mesh, const VdCorrParams& params,
                          ocl::Buffer<VdCorrespondence>& out);
-  // The dense colour term's rows (shared/correspondence.h vd_photometric_pixel): rows[n + i] from
-  // the depth row rows[i] of each of the raster's n pixels, the model's colour from mesh.colors.
+  // The dense colour term's rows (shared/correspondence.h vd_photometric_pixel): rows[n + b] for
+  // each 2x2 block b of the raster's n pixels (vd_photo_rows of them), from the depth row of its
+  // first pixel (vd_photo_pixel), the model's colour from mesh.colors.
   Status PhotometricCorrespondences(const DeviceRaster& model, const ocl::Buffer<vd_float4>& obs_v,
                                     const DeviceMesh& mesh, const ocl::Buffer<float>& intensity,
                                     const VdPhotoParams& params, ocl::Buffer<VdCorrespondence>& rows);
