@@ -23,7 +23,7 @@ SceneErrors RunSparse(const std::string& name, bool sift, int stride, bool colou
   SceneRun run;
   run.name = name;
   run.params.features.enabled = sift;
-  run.params.solver.w_photo = colour ? 0.03f : 0.f;
+  run.params.solver.w_photo = colour ? 0.06f : 0.f;
   run.stride = stride;
   auto e = EvaluateScene(run);
   EXPECT_TRUE(e.ok()) << e.status().ToString();
@@ -49,11 +49,21 @@ TEST(SparseScenesTest, ClothAblation) {
   // The surface follows as well (depth-only loses the sheet).
   EXPECT_LE(with.worst_surface_mm, 2.0);
   EXPECT_GT(with.mean_matches, 100.0);
-  // The dense colour term on top pins the slide where no feature matched: measured
-  // 2.23 -> 1.46 mm (docs/BENCHMARKS.md "Session 28").
+  // The dense colour term on top (--w-photo 0.06, on the coarse levels) pins the slide where no
+  // feature matched: measured 2.24 -> 1.35 mm (docs/BENCHMARKS.md "Session 35").
   const SceneErrors colour = RunSparse("cloth", true, 1, true);
-  EXPECT_LE(colour.last_drift_mm, 0.8 * with.last_drift_mm);
+  EXPECT_LE(colour.last_drift_mm, 0.7 * with.last_drift_mm);
   EXPECT_LE(colour.worst_surface_mm, with.worst_surface_mm + 0.05);
+}
+
+// On the rigid scene the colour term leaves the field still: its rows on the fine level too (session
+// 28) gave a non-rigid displacement of 0.78 mm over these 60 frames; on the coarse levels alone
+// 0.58 (0.49 without the term).
+TEST(SparseScenesTest, ColourLeavesTheRigidSceneStill) {
+  if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
+  const SceneErrors colour = RunSparse("rigid", true, 1, true);
+  EXPECT_LE(colour.last_nonrigid_mm, 0.7);
+  EXPECT_LE(colour.worst_surface_mm, 1.0);
 }
 
 TEST(SparseScenesTest, TubeEverySecondFrame) {

@@ -26,14 +26,16 @@ struct SolverParams {
   // pins the motion along the surface that depth cannot see wherever the surface has texture. Its
   // rows enter the hierarchy's coarse levels alone (VD_CORR_COARSE_ONLY): the slide it corrects
   // adds up smoothly along a bending surface, while on the fine level the same rows pulled each
-  // point by the image's grain (the rigid scene's non-rigid displacement over 150 frames 0.66 ->
-  // 0.85 mm with them there, 0.53 -> 0.60 mm coarse-only). At 0.06 (docs/BENCHMARKS.md "Session
+  // point by the image's grain (the rigid scene's non-rigid displacement over 150 frames 0.53 ->
+  // 0.60 mm coarse-only, 0.66 -> 0.85 mm on every level). At 0.06 (docs/BENCHMARKS.md "Session
   // 35"): drift tube 1.09 -> 0.98 mm, cloth 2.24 -> 1.35, bend 150 7.34 -> 4.83, bend 300 7.6 ->
-  // 5.59, for about 2 % of the frame. It runs only on colour registered to depth
-  // (EngineParams::colour_registered): on 7-Scenes, whose colour comes from a second, uncalibrated
-  // sensor, it took the room's ATE 26.3 -> 31.6 mm (rigid 29.2; session 28, on every level),
-  // trusting colour misplaced on the geometry; the registration check keeps it off there.
-  float w_photo = 0.06f;
+  // 5.59. Off by default: the fine level then needs 56 % more PCG iterations to settle the coarse
+  // levels' correction, 10 % of the tube's frame, which the real-time targets cannot give (the
+  // live 30 Hz fraction is 52-60 % against a bound of 50). It runs only on colour registered to
+  // depth (EngineParams::colour_registered): on 7-Scenes, whose colour comes from a second,
+  // uncalibrated sensor, it took the room's ATE 26.3 -> 31.6 mm (rigid 29.2; session 28, on every
+  // level), trusting colour misplaced on the geometry; the registration check keeps it off there.
+  float w_photo = 0.f;
   // A colour row weighs at most this much of a depth row: strong edges are where the linearisation
   // holds least. Coarse-only at 0.06: cap 1 bend 150 4.83 mm, rigid 150 0.60; with the cap at 4 and
   // w_photo 0.1 the bend reached 3.91 mm but the rigid scene 0.68 and the bend's worst surface
