@@ -99,6 +99,25 @@ struct ColourRowScene {
   }
 };
 
+// The colour rows' blocks: one row per 2x2 block at its first pixel, odd sizes included (the last
+// column and row form blocks of their own), each pixel with both coordinates even exactly once.
+TEST(CorrespondenceTest, ColourRowBlocksCoverTheEvenPixelsOnce) {
+  for (const auto& [w, h] : std::vector<std::pair<int, int>>{{5, 3}, {6, 4}, {1, 1}, {7, 2}, {640, 480}}) {
+    const int blocks = vd_photo_rows(w, h);
+    EXPECT_EQ(blocks, ((w + 1) / 2) * ((h + 1) / 2)) << w << "x" << h;
+    std::vector<int> seen(size_t(w) * h, 0);
+    for (int b = 0; b < blocks; ++b) {
+      const int i = vd_photo_pixel(b, w);
+      ASSERT_GE(i, 0);
+      ASSERT_LT(i, w * h) << w << "x" << h << " block " << b;
+      ASSERT_EQ(((i % w) | (i / w)) & 1, 0) << w << "x" << h << " block " << b;
+      ++seen[size_t(i)];
+    }
+    for (int i = 0; i < w * h; ++i) ASSERT_EQ(seen[size_t(i)], (((i % w) | (i / w)) & 1) == 0 ? 1 : 0) << i;
+  }
+  EXPECT_EQ(vd_photo_rows(5, 3), 6);
+}
+
 TEST(CorrespondenceTest, ColourRowIsTheLinearisedIntensityError) {
   ColourRowScene sc;
   sc.Ramp(0.02f, 0.01f, 0.005f);

@@ -112,6 +112,7 @@ VD_INLINE VdCorrespondence vd_level_constraint(VdCorrespondence c, int kf, VdAct
                                                VD_GLOBAL const vd_float4* x_f, int s, VdActive coarse,
                                                VD_GLOBAL const vd_float4* x0_c) {
   VdCorrespondence out = c;
+  out.normal.w = 0.0f; /* a coarse level solves every row (vd_fine_row) */
   int idx[8];
   float alpha[8];
   vd_float4 gc = vd_level_coords(c.canonical.x, c.canonical.y, c.canonical.z, s);
@@ -131,7 +132,6 @@ VD_INLINE VdCorrespondence vd_level_constraint(VdCorrespondence c, int kf, VdAct
   for (int o = 0; o < 8; ++o) p0 = p0 + x0_c[idx[o]] * alpha[o];
   out.target = c.target - (p_cur - p0);
   out.target.w = 0.0f;
-  out.normal.w = 0.0f; /* a coarse level solves every row (vd_fine_row) */
   return out;
 }
 

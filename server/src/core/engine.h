@@ -392,7 +392,9 @@ class Engine {
   static constexpr int kFieldStateInterval = 10;
   // With the dense colour term: it corrects the camera's drift along surfaces (which depth-only ICP
   // leaves) through the field, as a rigid part this moves into the pose (rigid scene, 60 frames:
-  // non-rigid displacement 0.95 mm checked every 30 frames, 0.70 every 10).
+  // non-rigid displacement 0.95 mm checked every 30 frames, 0.70 every 10; session 28, with the
+  // rows on every level). Its rows now act on the coarse levels alone, so on a field solved on the
+  // fine level only (static) this correction waits for the next solve on every level.
   static constexpr int kFieldRigidIntervalColour = 10;
   // Colour rows within this many pixels of an observed depth edge are dropped (VdPhotoParams): the
   // smoothed intensity (sqrt(3) px) there mixes the two surfaces.
