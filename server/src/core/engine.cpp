@@ -1026,7 +1026,8 @@ Status Engine::NonRigid(FrameResult* result, bool solve) {
   // made the intensity image; DeviceOps checks its size).
   // The colour rows are the coarse levels' alone (VD_CORR_COARSE_ONLY): a solve on the fine level
   // alone (a static field, --levels 1) would sort and walk them for nothing.
-  const bool photo = PhotometricEnabled() && solver_->num_levels() > 1 && params_.solver.coarse_flip_flop_iterations > 0;
+  const bool photo =
+      PhotometricEnabled() && solver_->num_levels() > 1 && params_.solver.coarse_flip_flop_iterations > 0;
   const size_t dense_rows = photo ? pixels + size_t(vd_photo_rows(cam_.width, cam_.height)) : pixels;
   const size_t total = dense_rows + sparse_host_.size();
   VD_RETURN_IF_ERROR(ctx_->Reserve(&corr_, total));
