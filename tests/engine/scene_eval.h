@@ -59,6 +59,8 @@ struct SceneErrors {
   // Levels of the solver's hierarchy per processed frame (fewer while the field is static).
   std::vector<int> solver_levels;
   size_t device_peak_bytes = 0;
+  // Whether the dense colour term ran at the end (on and the colour found registered).
+  bool colour_term_active = false;
   // Sparse features per frame (means): detected, lifted, matches used; detection + description ms.
   double mean_features = 0, mean_lifted = 0, mean_matches = 0, mean_extract_ms = 0, mean_match_ms = 0,
          mean_lift_ms = 0;
@@ -278,6 +280,7 @@ inline StatusOr<SceneErrors> EvaluateScene(const SceneRun& run) {
   out.process_wall_ms /= n;
   out.process_cpu_ms /= n;
   out.device_peak_bytes = engine->device_peak_bytes();
+  out.colour_term_active = engine->colour_term_active();
   return out;
 }
 

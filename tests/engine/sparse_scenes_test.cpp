@@ -52,6 +52,8 @@ TEST(SparseScenesTest, ClothAblation) {
   // The dense colour term on top (--w-photo 0.06, on the coarse levels) pins the slide where no
   // feature matched: measured 2.24 -> 1.35 mm (docs/BENCHMARKS.md "Session 35").
   const SceneErrors colour = RunSparse("cloth", true, 1, true);
+  EXPECT_TRUE(colour.colour_term_active);
+  EXPECT_FALSE(with.colour_term_active);
   EXPECT_LE(colour.last_drift_mm, 0.7 * with.last_drift_mm);
   EXPECT_LE(colour.worst_surface_mm, with.worst_surface_mm + 0.05);
 }
@@ -62,6 +64,7 @@ TEST(SparseScenesTest, ClothAblation) {
 TEST(SparseScenesTest, ColourLeavesTheRigidSceneStill) {
   if (!HaveDevice()) GTEST_SKIP() << "no OpenCL device";
   const SceneErrors colour = RunSparse("rigid", true, 1, true);
+  EXPECT_TRUE(colour.colour_term_active);
   EXPECT_LE(colour.last_nonrigid_mm, 0.7);
   EXPECT_LE(colour.worst_surface_mm, 1.0);
 }
