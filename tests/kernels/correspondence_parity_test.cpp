@@ -339,8 +339,9 @@ TEST(CorrespondenceParityTest, SphereAgainstAShiftedObservationMatchesCpu) {
     if (!(hinted[k].canonical.w > 0.f)) continue;
     ASSERT_EQ(hinted[k].target.w, float(owners[mc.triangles[3 * model.ids[k]]])) << k;
     const int b = (k / cam.width / 2) * ((cam.width + 1) / 2) + (k % cam.width) / 2;
-    if (vd_photo_pixel(b, cam.width) == k && hinted[n + b].canonical.w > 0.f)
+    if (vd_photo_pixel(b, cam.width) == k && hinted[n + b].canonical.w > 0.f) {
       ASSERT_EQ(hinted[n + b].target.w, hinted[k].target.w) << k;
+    }
     ++checked;
   }
   EXPECT_EQ(checked, valid);

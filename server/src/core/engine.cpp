@@ -1023,9 +1023,9 @@ Status Engine::NonRigid(FrameResult* result, bool solve) {
   if (!matches_.empty() && params_.solver.w_dense > 0.f)
     AppendSparseConstraints(matches_, params_.features.w_sparse / params_.solver.w_dense, &sparse_host_);
   // The dense colour rows, when on, follow the depth rows, one per 2x2 block of pixels (Preprocess
-  // made the intensity image; DeviceOps checks its size).
-  // The colour rows are the coarse levels' alone (VD_CORR_COARSE_ONLY): a solve on the fine level
-  // alone (a static field, --levels 1) would sort and walk them for nothing.
+  // made the intensity image; DeviceOps checks its size). They are the coarse levels' alone
+  // (VD_CORR_COARSE_ONLY): a solve on the fine level alone (a static field, --levels 1) would sort
+  // and walk them for nothing.
   const bool photo =
       PhotometricEnabled() && solver_->num_levels() > 1 && params_.solver.coarse_flip_flop_iterations > 0;
   const size_t dense_rows = photo ? pixels + size_t(vd_photo_rows(cam_.width, cam_.height)) : pixels;

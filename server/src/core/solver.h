@@ -31,7 +31,7 @@ struct SolverParams {
   // 35"): drift tube 1.09 -> 0.98 mm, cloth 2.24 -> 1.35, bend 150 7.34 -> 4.83, bend 300 7.6 ->
   // 5.59. Off by default: the fine level then needs 56 % more PCG iterations to settle the coarse
   // levels' correction, 10 % of the tube's frame, which the real-time targets cannot give (the
-  // live 30 Hz fraction is 52-60 % against a bound of 50). It runs only on colour registered to
+  // live 30 Hz fraction is 52-63 % against a bound of 50). It runs only on colour registered to
   // depth (EngineParams::colour_registered): on 7-Scenes, whose colour comes from a second,
   // uncalibrated sensor, it took the room's ATE 26.3 -> 31.6 mm (rigid 29.2; session 28, on every
   // level), trusting colour misplaced on the geometry; the registration check keeps it off there.

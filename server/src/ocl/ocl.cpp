@@ -425,10 +425,7 @@ Status Context::Enqueue(cl_kernel k, const char* name, size_t work_items, size_t
 }
 
 Status Context::Wait(PendingRead* pending) {
-  if (!pending->pending()) return Status::Ok();
-  const cl_int err = clWaitForEvents(1, &pending->event_);
-  clReleaseEvent(pending->event_);
-  pending->event_ = nullptr;
+  const cl_int err = pending->Release();
   if (err != CL_SUCCESS) return ClError(err, "clWaitForEvents", __FILE__, __LINE__);
   return Status::Ok();
 }

@@ -118,11 +118,13 @@ class PendingRead {
   bool pending() const { return event_ != nullptr; }
 
  private:
-  void Release() {
-    if (!event_) return;
-    clWaitForEvents(1, &event_);
+  // Waits for the download (if any) and lets its event go; the wait's result.
+  cl_int Release() {
+    if (!event_) return CL_SUCCESS;
+    const cl_int err = clWaitForEvents(1, &event_);
     clReleaseEvent(event_);
     event_ = nullptr;
+    return err;
   }
   friend class Context;
   cl_event event_ = nullptr;
